@@ -1,0 +1,307 @@
+//! Densities with their measure and Dirac order.
+//!
+//! A density is not just a number: it is measured against area, solid angle,
+//! length or counting measure, and it may carry Dirac factors (a specular
+//! lobe, a point light, a pinhole). Two densities of the same path compare
+//! first by their Dirac order, then by value; that is what makes specular
+//! paths and point lights compose in MIS without special cases.
+
+use std::fmt;
+
+/// The measure a single density is expressed in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Measure {
+    /// Counting measure: a probability mass (light choice, lobe choice, termination).
+    Discrete,
+    /// Length on an interval.
+    Length,
+    /// Area on a surface or in the plane (disk, square, triangle).
+    Area,
+    /// Solid angle on the unit sphere of directions.
+    SolidAngle,
+    /// The product of two area measures (a two-vertex segment).
+    AreaProduct,
+}
+
+impl Measure {
+    /// The dimension of the measure (0 for counting measure).
+    #[must_use]
+    pub const fn dimension(self) -> usize {
+        match self {
+            Measure::Discrete => 0,
+            Measure::Length => 1,
+            Measure::Area | Measure::SolidAngle => 2,
+            Measure::AreaProduct => 4,
+        }
+    }
+
+    fn product(self, other: Measure) -> Measure {
+        match (self, other) {
+            (Measure::Discrete, m) | (m, Measure::Discrete) => m,
+            (Measure::Area, Measure::Area) => Measure::AreaProduct,
+            (a, b) => {
+                debug_assert!(false, "product of measures {a:?} and {b:?} is not modelled");
+                a
+            }
+        }
+    }
+}
+
+/// The density of one sampled value: a non-negative value, its measure, and
+/// how many Dirac factors it carries.
+///
+/// A density with `dirac > 0` is the discrete mass of a Dirac component
+/// (times the conversion factors applied to it, such as the solid-angle to
+/// area change at a hit point). A zero density means the value cannot be
+/// produced at all. Non-finite or negative values are turned into zero.
+///
+/// ```
+/// use aether_core::{Density, Measure};
+/// let p = Density::discrete(0.25) * Density::new(2.0, Measure::SolidAngle);
+/// assert_eq!(p.value(), 0.5);
+/// assert_eq!(p.measure(), Measure::SolidAngle);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Density {
+    value: f64,
+    measure: Measure,
+    dirac: u32,
+}
+
+impl Density {
+    /// A continuous density in `measure`.
+    #[must_use]
+    pub fn new(value: f64, measure: Measure) -> Self {
+        let value = if value.is_finite() && value > 0.0 { value } else { 0.0 };
+        Density { value, measure, dirac: 0 }
+    }
+
+    /// A probability mass of a discrete event.
+    #[must_use]
+    pub fn discrete(mass: f64) -> Self {
+        Density::new(mass, Measure::Discrete)
+    }
+
+    /// A Dirac component with discrete `mass`, located in a space whose
+    /// continuous measure would be `measure`.
+    #[must_use]
+    pub fn dirac(mass: f64, measure: Measure) -> Self {
+        Density { dirac: 1, ..Density::new(mass, measure) }
+    }
+
+    /// The zero density of a value that cannot be produced.
+    #[must_use]
+    pub fn zero(measure: Measure) -> Self {
+        Density { value: 0.0, measure, dirac: 0 }
+    }
+
+    /// The numeric value (the mass, for Dirac components).
+    #[must_use]
+    pub fn value(self) -> f64 {
+        self.value
+    }
+
+    /// The measure the density is expressed in.
+    #[must_use]
+    pub fn measure(self) -> Measure {
+        self.measure
+    }
+
+    /// How many Dirac factors the density carries.
+    #[must_use]
+    pub fn dirac_order(self) -> u32 {
+        self.dirac
+    }
+
+    /// True if the value cannot be produced.
+    #[must_use]
+    pub fn is_zero(self) -> bool {
+        self.value == 0.0
+    }
+
+    /// True if the density carries at least one Dirac factor.
+    #[must_use]
+    pub fn is_dirac(self) -> bool {
+        self.dirac > 0 && self.value > 0.0
+    }
+
+    /// Multiplies by a Jacobian factor, keeping measure and Dirac order.
+    #[must_use]
+    pub fn scale(self, factor: f64) -> Self {
+        Density { dirac: self.dirac, ..Density::new(self.value * factor, self.measure) }
+    }
+
+    /// The same density re-expressed in another measure after a change of
+    /// variables whose Jacobian factor is `factor` (for instance
+    /// |cos θ| / r² from solid angle to area).
+    #[must_use]
+    pub fn convert(self, factor: f64, measure: Measure) -> Self {
+        Density { measure, ..self.scale(factor) }
+    }
+
+    /// The sum of two densities of the same value (a mixture). The term of
+    /// higher Dirac order dominates: a continuous density added to a Dirac
+    /// one is negligible.
+    #[must_use]
+    pub fn add(self, other: Density) -> Density {
+        if other.is_zero() {
+            return self;
+        }
+        if self.is_zero() {
+            return other;
+        }
+        match self.dirac.cmp(&other.dirac) {
+            std::cmp::Ordering::Greater => self,
+            std::cmp::Ordering::Less => other,
+            std::cmp::Ordering::Equal => Density { value: self.value + other.value, ..self },
+        }
+    }
+}
+
+impl std::ops::Mul for Density {
+    type Output = Density;
+    fn mul(self, rhs: Density) -> Density {
+        Density {
+            value: self.value * rhs.value,
+            measure: self.measure.product(rhs.measure),
+            dirac: self.dirac + rhs.dirac,
+        }
+    }
+}
+
+impl fmt::Display for Density {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.6e} ({:?}", self.value, self.measure)?;
+        if self.dirac > 0 {
+            write!(f, ", Dirac order {}", self.dirac)?;
+        }
+        write!(f, ")")
+    }
+}
+
+/// The density of a whole path: a product of per-vertex densities.
+///
+/// Zero factors are counted rather than multiplied in, so that a factor can
+/// be divided out again exactly (the ratio recursion of MIS depends on it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathDensity {
+    value: f64,
+    zeros: u32,
+    dirac: u32,
+}
+
+impl Default for PathDensity {
+    fn default() -> Self {
+        PathDensity::ONE
+    }
+}
+
+impl PathDensity {
+    /// The empty product.
+    pub const ONE: PathDensity = PathDensity { value: 1.0, zeros: 0, dirac: 0 };
+
+    /// Multiplies a factor in.
+    #[must_use]
+    pub fn times(self, d: Density) -> PathDensity {
+        if d.is_zero() {
+            PathDensity { zeros: self.zeros + 1, ..self }
+        } else {
+            PathDensity { value: self.value * d.value, dirac: self.dirac + d.dirac, zeros: self.zeros }
+        }
+    }
+
+    /// Divides out a factor that was multiplied in before.
+    #[must_use]
+    pub fn divided_by(self, d: Density) -> PathDensity {
+        if d.is_zero() {
+            debug_assert!(self.zeros > 0, "dividing out a zero factor that was never multiplied in");
+            PathDensity { zeros: self.zeros.saturating_sub(1), ..self }
+        } else {
+            PathDensity { value: self.value / d.value, dirac: self.dirac - d.dirac, zeros: self.zeros }
+        }
+    }
+
+    /// The numeric value: the product of the factors' values (masses for Dirac factors).
+    #[must_use]
+    pub fn value(self) -> f64 {
+        if self.zeros > 0 { 0.0 } else { self.value }
+    }
+
+    /// The number of Dirac factors in the product.
+    #[must_use]
+    pub fn dirac_order(self) -> u32 {
+        self.dirac
+    }
+
+    /// True if the path cannot be produced.
+    #[must_use]
+    pub fn is_zero(self) -> bool {
+        self.zeros > 0 || self.value == 0.0 || !self.value.is_finite()
+    }
+
+    /// `other / self` in the sense of MIS: infinite if `other` has more Dirac
+    /// factors, zero if it has fewer, the ratio of values if they match.
+    #[must_use]
+    pub fn ratio_to(self, other: PathDensity) -> f64 {
+        if other.is_zero() {
+            return 0.0;
+        }
+        if self.is_zero() {
+            return f64::INFINITY;
+        }
+        match other.dirac.cmp(&self.dirac) {
+            std::cmp::Ordering::Greater => f64::INFINITY,
+            std::cmp::Ordering::Less => 0.0,
+            std::cmp::Ordering::Equal => other.value / self.value,
+        }
+    }
+}
+
+impl fmt::Display for PathDensity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.6e}", self.value())?;
+        if self.dirac > 0 {
+            write!(f, " (Dirac order {})", self.dirac)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zeros_divide_out_exactly() {
+        let a = Density::new(3.0, Measure::Area);
+        let z = Density::zero(Measure::Area);
+        let p = PathDensity::ONE.times(a).times(z);
+        assert!(p.is_zero());
+        let q = p.divided_by(z);
+        assert_eq!(q.value(), 3.0);
+    }
+
+    #[test]
+    fn dirac_dominates_in_ratios() {
+        let cont = PathDensity::ONE.times(Density::new(1e9, Measure::Area));
+        let dirac = PathDensity::ONE.times(Density::dirac(0.5, Measure::SolidAngle));
+        assert_eq!(cont.ratio_to(dirac), f64::INFINITY);
+        assert_eq!(dirac.ratio_to(cont), 0.0);
+        let dirac2 = PathDensity::ONE.times(Density::dirac(0.25, Measure::SolidAngle));
+        assert_eq!(dirac.ratio_to(dirac2), 0.5);
+    }
+
+    #[test]
+    fn mixture_of_dirac_and_continuous() {
+        let d = Density::dirac(0.3, Measure::SolidAngle).add(Density::new(5.0, Measure::SolidAngle));
+        assert!(d.is_dirac());
+        assert_eq!(d.value(), 0.3);
+    }
+
+    #[test]
+    fn non_finite_becomes_zero() {
+        assert!(Density::new(f64::NAN, Measure::Area).is_zero());
+        assert!(Density::new(f64::INFINITY, Measure::Area).is_zero());
+        assert!(Density::new(-1.0, Measure::Area).is_zero());
+    }
+}

@@ -1,0 +1,203 @@
+//! Checks (a), inversion and (b): pointwise, at uniforms chosen by proptest.
+
+use std::cell::RefCell;
+use std::fmt;
+
+use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestError, TestRng, TestRunner};
+
+use super::{Check, Failure, Report};
+use crate::distribution::{Coords, Distribution, Embed};
+
+/// Uniforms closer than this to 0 or 1 are not generated: warps are
+/// singular at the boundary of the square (poles, cone rims).
+const MARGIN: f32 = 0.02;
+/// Finite-difference step in uniform space.
+const STEP: f32 = 2e-3;
+
+fn embed<T: Embed>(v: &T) -> (Coords, usize) {
+    let mut c = Coords::new();
+    let m = v.embed(&mut c);
+    (c, m)
+}
+
+/// The pseudo-determinant of JᵀJ restricted to rank `m`: the sum of its
+/// principal minors of order m (columns of discrete choices are zero).
+fn gram_pseudo_determinant(columns: &[Coords], m: usize) -> f64 {
+    let d = columns.len();
+    let gram = |i: usize, j: usize| columns[i].iter().zip(&columns[j]).map(|(a, b)| a * b).sum::<f64>();
+    let mut total = 0.0;
+    for mask in 0u32..(1 << d) {
+        if mask.count_ones() as usize != m {
+            continue;
+        }
+        let idx: Vec<usize> = (0..d).filter(|k| mask & (1 << k) != 0).collect();
+        let mut a: Vec<Vec<f64>> = idx.iter().map(|&i| idx.iter().map(|&j| gram(i, j)).collect()).collect();
+        total += determinant(&mut a);
+    }
+    total
+}
+
+fn determinant(a: &mut [Vec<f64>]) -> f64 {
+    let n = a.len();
+    let mut det = 1.0;
+    for c in 0..n {
+        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs())).unwrap_or(c);
+        if a[p][c] == 0.0 {
+            return 0.0;
+        }
+        if p != c {
+            a.swap(p, c);
+            det = -det;
+        }
+        det *= a[c][c];
+        for r in c + 1..n {
+            let f = a[r][c] / a[c][c];
+            for k in c..n {
+                a[r][k] -= f * a[c][k];
+            }
+        }
+    }
+    det
+}
+
+/// 1/√pdet(JᵀJ) with central differences of step `h`, or `None` where the
+/// map is undefined or changes manifold nearby.
+fn finite_difference_density<D>(d: &D, u: &[f32], h: f32) -> Option<f64>
+where
+    D: Distribution,
+    D::Value: Embed,
+{
+    let (c0, m) = embed(&d.sample(u)?.value);
+    if m == 0 {
+        return None;
+    }
+    let mut columns = Vec::with_capacity(u.len());
+    for k in 0..u.len() {
+        let (mut up, mut down) = (u.to_vec(), u.to_vec());
+        up[k] = (u[k] + h).min(1.0 - f32::EPSILON);
+        down[k] = (u[k] - h).max(0.0);
+        let step = f64::from(up[k]) - f64::from(down[k]);
+        let (cp, mp) = embed(&d.sample(&up)?.value);
+        let (cm, mm) = embed(&d.sample(&down)?.value);
+        if mp != m || mm != m || cp.len() != c0.len() || cm.len() != c0.len() {
+            return None;
+        }
+        columns.push(cp.iter().zip(&cm).map(|(a, b)| (a - b) / step).collect::<Coords>());
+    }
+    let det = gram_pseudo_determinant(&columns, m);
+    (det > 0.0).then(|| 1.0 / det.sqrt())
+}
+
+fn distance(a: &Coords, b: &Coords) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+}
+
+#[derive(Default)]
+struct Tally {
+    checked: u32,
+    skipped: u32,
+    max_error: f64,
+    failure: Option<Failure>,
+}
+
+pub(super) fn check_pointwise<D>(d: &D, config: &Check) -> Result<Report, Failure>
+where
+    D: Distribution,
+    D::Value: Embed + fmt::Debug,
+{
+    let dims = d.dims();
+    let tally = RefCell::new(Tally::default());
+    let mut runner = TestRunner::new_with_rng(
+        Config { cases: config.cases, failure_persistence: None, ..Config::default() },
+        TestRng::from_seed(RngAlgorithm::ChaCha, &seed_bytes(config.seed)),
+    );
+    let strategy = proptest::collection::vec(MARGIN..1.0 - MARGIN, dims);
+    let result = runner.run(&strategy, |u| {
+        let failure = check_case(d, &u, config, &mut tally.borrow_mut());
+        match failure {
+            Some(f) => {
+                let message = f.to_string();
+                tally.borrow_mut().failure = Some(f);
+                Err(TestCaseError::fail(message))
+            }
+            None => Ok(()),
+        }
+    });
+    let tally = tally.into_inner();
+    if let Err(TestError::Fail(..)) = result {
+        // The last failure recorded is proptest's shrunk, minimal case.
+        return Err(tally.failure.expect("a failing case records its failure"));
+    }
+    let continuous = tally.checked + tally.skipped;
+    if continuous > 0 && f64::from(tally.checked) < config.min_checked * f64::from(continuous) {
+        return Err(Failure::TooFewJacobianCases { checked: tally.checked, skipped: tally.skipped });
+    }
+    Ok(Report {
+        cases: config.cases,
+        jacobian_checked: tally.checked,
+        jacobian_skipped: tally.skipped,
+        jacobian_max_error: tally.max_error,
+        ..Report::default()
+    })
+}
+
+fn seed_bytes(seed: u64) -> [u8; 32] {
+    let mut bytes = [0u8; 32];
+    for (i, chunk) in bytes.chunks_mut(8).enumerate() {
+        chunk.copy_from_slice(&(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15).wrapping_add(i as u64)).to_le_bytes());
+    }
+    bytes
+}
+
+fn check_case<D>(d: &D, u: &[f32], config: &Check, tally: &mut Tally) -> Option<Failure>
+where
+    D: Distribution,
+    D::Value: Embed + fmt::Debug,
+{
+    let Some(s) = d.sample(u) else { return None };
+    // (a) density mode against the recorded density.
+    let evaluated = d.density(&s.value);
+    let (r, e) = (s.density.value(), evaluated.value());
+    let agree = s.density.dirac_order() == evaluated.dirac_order()
+        && (r - e).abs() <= config.agreement_tolerance * r.max(e)
+        && (r == 0.0) == (e == 0.0);
+    if !agree {
+        return Some(Failure::Agreement { u: u.to_vec(), recorded: s.density.to_string(), evaluated: evaluated.to_string() });
+    }
+    if s.density.is_zero() {
+        return None;
+    }
+    // Inversion: sampling the inverted uniforms gives the value back.
+    let (c0, _) = embed(&s.value);
+    let scale = c0.iter().fold(1.0f64, |a, x| a.max(x.abs()));
+    let inverted = d.invert(&s.value);
+    let back = inverted.as_ref().and_then(|v| d.sample(v)).map(|t| embed(&t.value).0);
+    match back {
+        Some(c1) if distance(&c0, &c1) <= 1e-3 * scale => {}
+        other => {
+            return Some(Failure::Inversion {
+                u: u.to_vec(),
+                inverted: inverted.map(|v| v.to_vec()),
+                distance: other.map_or(f64::INFINITY, |c1| distance(&c0, &c1)),
+            });
+        }
+    }
+    // (b) the Jacobian, where the value is continuous and a single branch made it.
+    if s.density.is_dirac() || d.has_overlapping_branches() || embed(&s.value).1 == 0 {
+        return None;
+    }
+    let coarse = finite_difference_density(d, u, STEP);
+    let fine = finite_difference_density(d, u, STEP / 2.0);
+    let (Some(coarse), Some(fine)) = (coarse, fine) else {
+        tally.skipped += 1;
+        return None;
+    };
+    if (coarse - fine).abs() > 0.25 * config.jacobian_tolerance * fine {
+        tally.skipped += 1;
+        return None;
+    }
+    tally.checked += 1;
+    let error = (r - fine).abs() / fine;
+    tally.max_error = tally.max_error.max(error);
+    (error > config.jacobian_tolerance).then(|| Failure::Jacobian { u: u.to_vec(), expected: fine, got: r })
+}

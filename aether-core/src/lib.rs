@@ -1,0 +1,62 @@
+//! The Aether sampling language: write a sampling strategy once and get
+//! its density for any vertex, so that multiple importance sampling is
+//! automatic.
+//!
+//! # The model
+//! A strategy is sampling code: it draws uniforms, warps them, changes
+//! frames, casts a ray and returns a vertex. Here it is written as a
+//! composition of invertible blocks ([`Distribution`]s) built from the
+//! conditioning vertices alone. The framework runs the composition forward
+//! to sample and backward, through each block's analytic inverse and
+//! Jacobian, to evaluate the density of any given vertex, without casting
+//! rays. No strategy writes a pdf.
+//!
+//! * [`primitives`]: the closed set of warps with inverses and Jacobians.
+//! * Combinators: [`InFrame`] (frame change), [`Select`] (a discrete choice
+//!   looked up from the value), [`Mixture`] (overlapping lobes, summed),
+//!   [`RussianRoulette`] (termination as an event with probability),
+//!   [`Either`], [`Intersect`] (solid angle → area at the hit point),
+//!   [`OnSurface`] and [`DiracPoint`].
+//! * Measures: [`Density`] carries its [`Measure`] and Dirac order; a path's
+//!   [`PathDensity`] compares by Dirac order first.
+//! * Paths: [`Strategy`], [`RandomSequence`] (append, sample, slice, concat,
+//!   reverse, pdf) and [`combine`] with a [`Heuristic`].
+//! * Verification: [`harness`] checks any distribution or strategy against
+//!   finite differences, chi-square histograms and MIS partition of unity.
+//! * [`testing`]: a tiny analytic scene and strategies for examples and tests.
+//!
+//! Floating point: geometry is f32; densities, their products and MIS
+//! ratios are f64.
+#![deny(unsafe_code)]
+#![warn(missing_docs, missing_debug_implementations)]
+
+mod blocks;
+mod choice;
+mod density;
+mod distribution;
+mod frame;
+pub mod harness;
+mod mis;
+pub mod primitives;
+mod rng;
+mod sequence;
+mod strategy;
+mod surface;
+pub mod testing;
+mod vertex;
+
+pub use blocks::{Either, InFrame};
+pub use choice::{Mixture, RussianRoulette, Select};
+pub use density::{Density, Measure, PathDensity};
+pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
+pub use frame::{Frame, reflect, refract};
+pub use mis::{Heuristic, Weights, combine};
+pub use rng::{Pcg32, UniformSource};
+pub use sequence::{INLINE_VERTICES, RandomSequence};
+pub use strategy::{DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef};
+pub use surface::{DiracPoint, Intersect, OnSurface};
+pub use vertex::{Geometry, RayCaster, Vertex};
+
+#[doc = include_str!("../../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -1,0 +1,266 @@
+//! Multiple importance sampling: heuristics and `combine`.
+
+use std::cell::RefCell;
+
+use smallvec::SmallVec;
+
+use crate::density::{Density, Measure, PathDensity};
+use crate::sequence::{FactorKey, RandomSequence, Span};
+use crate::vertex::Vertex;
+
+/// MIS weights for up to this many candidates are returned inline.
+pub type Weights = SmallVec<[f64; 16]>;
+
+/// How MIS weighs the strategies that could have produced a path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Heuristic {
+    /// wᵢ = pᵢ / Σⱼ pⱼ.
+    Balance,
+    /// wᵢ = pᵢ^β / Σⱼ pⱼ^β.
+    Power(f64),
+}
+
+impl Heuristic {
+    /// Veach's power heuristic with β = 2.
+    pub const POWER: Heuristic = Heuristic::Power(2.0);
+
+    /// The weight of candidate `i` given the densities of its path under
+    /// every candidate's strategies (`densities[i]` is its own).
+    ///
+    /// Dirac order comes first: a strategy whose density has more Dirac
+    /// factors takes all the weight. Zero and non-finite densities are
+    /// skipped. Computed as 1 / Σⱼ (pⱼ/pᵢ)^β, in f64.
+    #[must_use]
+    pub fn weight(self, densities: &[PathDensity], i: usize) -> f64 {
+        let own = densities[i];
+        if own.is_zero() {
+            return 0.0;
+        }
+        let mut sum = 0.0;
+        for &p in densities {
+            let r = own.ratio_to(p);
+            if r == f64::INFINITY {
+                return 0.0;
+            }
+            sum += match self {
+                Heuristic::Balance => r,
+                Heuristic::Power(beta) if beta == 2.0 => r * r,
+                Heuristic::Power(beta) => r.powf(beta),
+            };
+        }
+        if sum.is_finite() && sum > 0.0 { 1.0 / sum } else { 0.0 }
+    }
+}
+
+/// A generation-stamped open-addressing table of density factors, reused
+/// across calls so that steady-state MIS allocates nothing.
+#[derive(Debug, Default)]
+pub(crate) struct FactorCache {
+    entries: Vec<(u32, FactorKey, Density)>,
+    generation: u32,
+    len: usize,
+}
+
+impl FactorCache {
+    fn begin(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.entries.iter_mut().for_each(|e| e.0 = 0);
+            self.generation = 1;
+        }
+        self.len = 0;
+        if self.entries.is_empty() {
+            self.entries = vec![(0, FactorKey::EMPTY, Density::zero(Measure::Area)); 256];
+        }
+    }
+
+    fn mask(&self) -> usize {
+        self.entries.len() - 1
+    }
+
+    pub(crate) fn get(&self, key: &FactorKey) -> Option<Density> {
+        if self.entries.is_empty() {
+            return None;
+        }
+        let mut i = key.hash64() as usize & self.mask();
+        loop {
+            let (g, k, d) = &self.entries[i];
+            if *g != self.generation {
+                return None;
+            }
+            if k == key {
+                return Some(*d);
+            }
+            i = (i + 1) & self.mask();
+        }
+    }
+
+    pub(crate) fn insert(&mut self, key: FactorKey, density: Density) {
+        if self.entries.is_empty() {
+            self.begin();
+        }
+        if 2 * (self.len + 1) > self.entries.len() {
+            self.grow();
+        }
+        let mut i = key.hash64() as usize & self.mask();
+        while self.entries[i].0 == self.generation {
+            if self.entries[i].1 == key {
+                return;
+            }
+            i = (i + 1) & self.mask();
+        }
+        self.entries[i] = (self.generation, key, density);
+        self.len += 1;
+    }
+
+    fn grow(&mut self) {
+        let size = 2 * self.entries.len().max(128);
+        let old = std::mem::replace(&mut self.entries, vec![(0, FactorKey::EMPTY, Density::zero(Measure::Area)); size]);
+        self.len = 0;
+        for (g, k, d) in old {
+            if g == self.generation {
+                self.insert(k, d);
+            }
+        }
+    }
+}
+
+/// Scratch reused by every `combine` on a thread.
+#[derive(Debug, Default)]
+struct Scratch {
+    cache: FactorCache,
+    densities: Vec<PathDensity>,
+    /// For each candidate j > 0, the steps it has and candidate j − 1 has not
+    /// (`added`), and the reverse (`removed`), as ranges into `spans`.
+    diffs: Vec<(u32, u32, u32, u32)>,
+    spans: Vec<SpanRecord>,
+}
+
+/// A step stored without lifetimes: candidate index and position, so that
+/// the scratch can live in a thread-local.
+#[derive(Clone, Copy, Debug)]
+struct SpanRecord {
+    candidate: u32,
+    index: u32,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+/// The MIS weight of each candidate path that one sample produced.
+///
+/// `candidates[i]` is a path together with the strategies that sampled it.
+/// Its weight uses the density of its vertices under every candidate's
+/// strategies (candidates of another length give zero). Densities are
+/// cached by (strategy, depth, target and conditioning vertices), so a
+/// vertex shared by several candidates, such as a camera-subpath vertex in
+/// BDPT, has its forward and reverse densities evaluated once; each
+/// candidate's densities under all strategies then follow by multiplying in
+/// and dividing out only the steps in which consecutive candidates differ
+/// (Veach's ratio recursion). Order the candidates so that neighbours
+/// differ little (by s in BDPT) for the cost to be linear in path length.
+///
+/// ```
+/// use aether_core::{Heuristic, Pcg32, RandomSequence, combine};
+/// use aether_core::testing::{Bounce, CameraPoint, LightSample, TestScene};
+///
+/// let scene = TestScene::open_box();
+/// let (camera, bounce, light) = (CameraPoint::default(), Bounce::new(&scene), LightSample::new(&scene));
+/// let mut rng = Pcg32::new(3, 0);
+/// let mut bsdf_path = RandomSequence::new();
+/// bsdf_path.append(&camera).append(&bounce).append(&bounce);
+/// bsdf_path.sample(&mut rng);
+/// let mut light_path = bsdf_path.slice(0..2);
+/// light_path.append(&light);
+/// light_path.sample(&mut rng);
+/// let w = combine(&[bsdf_path, light_path], Heuristic::POWER);
+/// assert!(w.iter().all(|w| (0.0..=1.0).contains(w)));
+/// ```
+pub fn combine<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heuristic) -> Weights {
+    SCRATCH.with(|s| match s.try_borrow_mut() {
+        Ok(mut scratch) => combine_with(candidates, heuristic, &mut scratch),
+        Err(_) => combine_with(candidates, heuristic, &mut Scratch::default()),
+    })
+}
+
+fn combine_with<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heuristic, scratch: &mut Scratch) -> Weights {
+    let m = candidates.len();
+    let Scratch { cache, densities, diffs, spans } = scratch;
+    cache.begin();
+    diffs.clear();
+    spans.clear();
+    // Each candidate's steps, then the differences between neighbours.
+    let steps: SmallVec<[SmallVec<[Span<'_, V>; 16]>; 16]> = candidates.iter().map(|c| c.spans().collect()).collect();
+    for j in 1..m {
+        let a = spans.len() as u32;
+        for (index, s) in steps[j].iter().enumerate() {
+            if !steps[j - 1].contains(s) {
+                spans.push(SpanRecord { candidate: j as u32, index: index as u32 });
+            }
+        }
+        let b = spans.len() as u32;
+        for (index, s) in steps[j - 1].iter().enumerate() {
+            if !steps[j].contains(s) {
+                spans.push(SpanRecord { candidate: (j - 1) as u32, index: index as u32 });
+            }
+        }
+        diffs.push((a, b, b, spans.len() as u32));
+    }
+    let span_of = |r: &SpanRecord| steps[r.candidate as usize][r.index as usize];
+    let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
+
+    let mut weights = Weights::new();
+    for (i, x) in candidates.iter().enumerate() {
+        densities.clear();
+        let mut running: Option<PathDensity> = None;
+        for j in 0..m {
+            if candidates[j].len() != x.len() {
+                densities.push(zero);
+                running = None;
+                continue;
+            }
+            let p = match running {
+                Some(p) if j > 0 => {
+                    let (a, b, c, d) = diffs[j - 1];
+                    let added = spans[a as usize..b as usize].iter().map(span_of);
+                    let removed = spans[c as usize..d as usize].iter().map(span_of);
+                    let p = removed.fold(p, |p, s| p.divided_by(x.factor(&s, Some(cache))));
+                    added.fold(p, |p, s| p.times(x.factor(&s, Some(cache))))
+                }
+                _ => steps[j].iter().fold(PathDensity::ONE, |p, s| p.times(x.factor(s, Some(cache)))),
+            };
+            running = Some(p);
+            densities.push(p);
+        }
+        weights.push(heuristic.weight(densities, i));
+    }
+    weights
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn power_heuristic_of_two() {
+        let a = PathDensity::ONE.times(Density::new(1.0, Measure::Area));
+        let b = PathDensity::ONE.times(Density::new(3.0, Measure::Area));
+        let w0 = Heuristic::POWER.weight(&[a, b], 0);
+        let w1 = Heuristic::POWER.weight(&[a, b], 1);
+        assert!((w0 - 0.1).abs() < 1e-12 && (w1 - 0.9).abs() < 1e-12);
+        assert!((Heuristic::Balance.weight(&[a, b], 0) - 0.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn cache_grows_and_forgets() {
+        let mut c = FactorCache::default();
+        c.begin();
+        for i in 0..1000u64 {
+            c.insert(FactorKey::test(i), Density::new(i as f64 + 1.0, Measure::Area));
+        }
+        assert_eq!(c.get(&FactorKey::test(999)).unwrap().value(), 1000.0);
+        c.begin();
+        assert!(c.get(&FactorKey::test(999)).is_none());
+    }
+}

@@ -1,0 +1,191 @@
+use std::f32::consts::FRAC_PI_4;
+use std::f64::consts::PI;
+
+use glam::{Vec2, Vec3};
+use smallvec::smallvec;
+
+use crate::density::{Density, Measure};
+use crate::distribution::{Distribution, Sample, Uniforms, below_one, in_unit_cube};
+
+/// The uniform distribution on a disk of radius `r` centred at the origin,
+/// by Shirley and Chiu's concentric map (low distortion, invertible).
+///
+/// Density: 1 / (π r²) in area measure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UniformDisk {
+    radius: f32,
+}
+
+impl UniformDisk {
+    /// The unit disk.
+    pub const UNIT: UniformDisk = UniformDisk { radius: 1.0 };
+
+    /// A disk of the given positive radius.
+    #[must_use]
+    pub fn new(radius: f32) -> Self {
+        debug_assert!(radius > 0.0);
+        UniformDisk { radius }
+    }
+
+    /// The concentric map of the unit square onto the unit disk.
+    #[must_use]
+    pub fn concentric(u: [f32; 2]) -> Vec2 {
+        let a = 2.0 * u[0] - 1.0;
+        let b = 2.0 * u[1] - 1.0;
+        if a == 0.0 && b == 0.0 {
+            return Vec2::ZERO;
+        }
+        let (r, phi) = if a.abs() > b.abs() {
+            (a, FRAC_PI_4 * (b / a))
+        } else {
+            (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b))
+        };
+        r * Vec2::new(phi.cos(), phi.sin())
+    }
+
+    /// The inverse of [`concentric`](Self::concentric) on the closed unit disk.
+    #[must_use]
+    pub fn concentric_inverse(p: Vec2) -> Option<[f32; 2]> {
+        let r = f64::from(p.length());
+        if r > 1.0 + 1e-6 {
+            return None;
+        }
+        let theta = f64::from(p.y).atan2(f64::from(p.x));
+        let quarter = PI / 4.0;
+        // Which wedge of the square the point came from, and its signed radius.
+        let (a, b) = if theta.abs() <= quarter {
+            (r, r * theta / quarter)
+        } else if theta.abs() >= 3.0 * quarter {
+            let t = if theta > 0.0 { theta - PI } else { theta + PI };
+            (-r, -r * t / quarter)
+        } else if theta > 0.0 {
+            (r * (2.0 - theta / quarter), r)
+        } else {
+            let t = theta + PI;
+            (-r * (2.0 - t / quarter), -r)
+        };
+        let u = [below_one(((a + 1.0) / 2.0) as f32), below_one(((b + 1.0) / 2.0) as f32)];
+        in_unit_cube(&u).then_some(u)
+    }
+
+    fn pdf(&self) -> Density {
+        let r = f64::from(self.radius);
+        Density::new(1.0 / (PI * r * r), Measure::Area)
+    }
+}
+
+impl Distribution for UniformDisk {
+    type Value = Vec2;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec2>> {
+        Some(Sample::new(self.radius * Self::concentric([u[0], u[1]]), self.pdf()))
+    }
+    fn density(&self, p: &Vec2) -> Density {
+        if p.length() <= self.radius { self.pdf() } else { Density::zero(Measure::Area) }
+    }
+    fn invert(&self, p: &Vec2) -> Option<Uniforms> {
+        Self::concentric_inverse(*p / self.radius).map(|u| smallvec![u[0], u[1]])
+    }
+}
+
+/// The uniform distribution on a triangle, by area.
+///
+/// The map is b₀ = 1 − √u₀, b₁ = u₁ √u₀ on barycentrics. Its inverse checks
+/// that a point lies in the triangle's plane, with a tolerance relative to
+/// the triangle's size (no absolute epsilon).
+///
+/// Density: 1 / A in area measure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UniformTriangle {
+    p: [Vec3; 3],
+}
+
+impl UniformTriangle {
+    /// The triangle with these corners.
+    #[must_use]
+    pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
+        UniformTriangle { p: [p0, p1, p2] }
+    }
+
+    /// Its area.
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        let e1 = (self.p[1] - self.p[0]).as_dvec3();
+        let e2 = (self.p[2] - self.p[0]).as_dvec3();
+        0.5 * e1.cross(e2).length()
+    }
+
+    /// Barycentrics (b₀, b₁) of a point in the triangle's plane, or `None`
+    /// if it lies off the plane or outside the triangle.
+    #[must_use]
+    pub fn barycentrics(&self, x: Vec3) -> Option<(f64, f64)> {
+        let [p0, p1, p2] = self.p.map(|p| p.as_dvec3());
+        let x = x.as_dvec3();
+        let (e1, e2, d) = (p1 - p0, p2 - p0, x - p0);
+        let n = e1.cross(e2);
+        let n2 = n.length_squared();
+        if n2 == 0.0 {
+            return None;
+        }
+        let size = n2.sqrt().sqrt();
+        if d.dot(n).abs() / n2.sqrt() > 1e-4 * size {
+            return None;
+        }
+        // x = p0 + β e1 + γ e2; b₀ weighs p0, b₁ weighs p1.
+        let beta = d.cross(e2).dot(n) / n2;
+        let gamma = e1.cross(d).dot(n) / n2;
+        let b0 = 1.0 - beta - gamma;
+        let tol = -1e-6;
+        (b0 >= tol && beta >= tol && gamma >= tol).then_some((b0, beta))
+    }
+
+    fn pdf(&self) -> Density {
+        Density::new(1.0 / self.area(), Measure::Area)
+    }
+}
+
+impl Distribution for UniformTriangle {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        let su = f64::from(u[0]).sqrt();
+        let b0 = 1.0 - su;
+        let b1 = f64::from(u[1]) * su;
+        let [p0, p1, p2] = self.p.map(|p| p.as_dvec3());
+        let x = b0 * p0 + b1 * p1 + (1.0 - b0 - b1) * p2;
+        Some(Sample::new(x.as_vec3(), self.pdf()))
+    }
+    fn density(&self, x: &Vec3) -> Density {
+        match self.barycentrics(*x) {
+            Some(_) => self.pdf(),
+            None => Density::zero(Measure::Area),
+        }
+    }
+    fn invert(&self, x: &Vec3) -> Option<Uniforms> {
+        let (b0, b1) = self.barycentrics(*x)?;
+        let su = (1.0 - b0).clamp(0.0, 1.0);
+        let u1 = if su > 0.0 { b1 / su } else { 0.5 };
+        Some(smallvec![below_one((su * su) as f32), below_one(u1.clamp(0.0, 1.0) as f32)])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn concentric_round_trip() {
+        for i in 1..20 {
+            for j in 1..20 {
+                let u = [i as f32 / 20.0, j as f32 / 20.0];
+                let p = UniformDisk::concentric(u);
+                let v = UniformDisk::concentric_inverse(p).unwrap();
+                assert!((v[0] - u[0]).abs() < 1e-5 && (v[1] - u[1]).abs() < 1e-5, "{u:?} -> {p} -> {v:?}");
+            }
+        }
+    }
+}

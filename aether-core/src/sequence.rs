@@ -1,0 +1,478 @@
+//! `RandomSequence`: a path as a list of vertices, each with the strategy
+//! that samples it and the direction it is sampled in.
+
+use std::cell::Cell;
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use smallvec::SmallVec;
+
+use crate::density::{Density, Measure, PathDensity};
+use crate::mis::FactorCache;
+use crate::rng::UniformSource;
+use crate::strategy::{DynPairStrategy, DynStrategy, Prefix, StepKind, StrategyRef};
+use crate::vertex::Vertex;
+
+/// Inline capacity of a sequence: paths up to this many vertices allocate nothing.
+pub const INLINE_VERTICES: usize = 12;
+
+static NEXT_ID_BLOCK: AtomicU64 = AtomicU64::new(1);
+
+thread_local! {
+    static NEXT_ID: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
+}
+
+/// A fresh vertex identity. Ids come in per-thread blocks of 2³², so they
+/// are unique across threads without contention; 0 is never used.
+fn fresh_id() -> u64 {
+    NEXT_ID.with(|c| {
+        let (mut next, mut end) = c.get();
+        if next == end {
+            next = NEXT_ID_BLOCK.fetch_add(1, Ordering::Relaxed) << 32;
+            end = next + (1 << 32);
+        }
+        c.set((next + 1, end));
+        next
+    })
+}
+
+/// Identifies one density factor: a strategy evaluated for given target
+/// vertices with given conditioning vertices at a given depth. Equal keys
+/// have equal densities, whichever candidate path they occur in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct FactorKey {
+    strategy: usize,
+    kind: usize,
+    prefix_len: u32,
+    targets: [u64; 2],
+    cond: [u64; 2],
+}
+
+impl FactorKey {
+    pub(crate) const EMPTY: FactorKey = FactorKey { strategy: 0, kind: 0, prefix_len: 0, targets: [0; 2], cond: [0; 2] };
+
+    #[cfg(test)]
+    pub(crate) fn test(i: u64) -> FactorKey {
+        FactorKey { targets: [i, 0], ..Self::EMPTY }
+    }
+
+    pub(crate) fn hash64(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        for w in [self.strategy as u64, self.kind as u64, u64::from(self.prefix_len), self.targets[0], self.targets[1], self.cond[0], self.cond[1]] {
+            h = (h ^ w).wrapping_mul(0x0000_0100_0000_01b3).rotate_left(29);
+        }
+        h ^ (h >> 31)
+    }
+}
+
+/// One vertex's bookkeeping.
+pub(crate) struct Slot<'s, V> {
+    pub(crate) strategy: Option<StrategyRef<'s, V>>,
+    pub(crate) reversed: bool,
+    /// Number of vertices of the step this vertex belongs to.
+    pub(crate) arity: u8,
+    /// Position within that step, in sampling order.
+    pub(crate) part: u8,
+    pub(crate) id: u64,
+    /// The density recorded while sampling, on the step's first vertex.
+    pub(crate) recorded: Option<(FactorKey, Density)>,
+}
+
+impl<V> Clone for Slot<'_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V> Copy for Slot<'_, V> {}
+
+/// One step of a sequence seen as a factor of the path density.
+pub(crate) struct Span<'s, V> {
+    pub(crate) start: usize,
+    pub(crate) arity: usize,
+    pub(crate) strategy: Option<StrategyRef<'s, V>>,
+    pub(crate) reversed: bool,
+    pub(crate) fixed_id: u64,
+}
+
+impl<V> Clone for Span<'_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V> Copy for Span<'_, V> {}
+
+impl<V> PartialEq for Span<'_, V> {
+    fn eq(&self, other: &Self) -> bool {
+        let same_strategy = match (self.strategy, other.strategy) {
+            (Some(a), Some(b)) => a.same(&b),
+            (None, None) => self.fixed_id == other.fixed_id,
+            _ => false,
+        };
+        same_strategy && self.start == other.start && self.arity == other.arity && self.reversed == other.reversed
+    }
+}
+
+/// A path under construction or sampled: vertices, and for each the
+/// strategy that samples it and whether it is sampled forward (conditioned
+/// on the vertices before it) or reversed (on the vertices after it).
+///
+/// Sequences are built by [`append`](Self::append) and
+/// [`sample`](Self::sample), and recombined by [`slice`](Self::slice),
+/// [`concat`](Self::concat) and [`reversed`](Self::reversed), which keep
+/// each vertex's strategy. [`pdf`](Self::pdf) is the density of the
+/// sequence's own vertices; [`pdf_of`](Self::pdf_of) the density with
+/// which this sequence's strategies would produce another path's vertices.
+///
+/// Vertices live inline up to [`INLINE_VERTICES`]; sampling, slicing and
+/// density evaluation allocate nothing below that length.
+///
+/// ```
+/// use aether_core::{Pcg32, RandomSequence};
+/// use aether_core::testing::{Bounce, CameraPoint, TestScene};
+///
+/// let scene = TestScene::open_box();
+/// let (camera, bounce) = (CameraPoint::default(), Bounce::new(&scene));
+/// let mut path = RandomSequence::new();
+/// path.append(&camera).append(&bounce).append(&bounce);
+/// path.sample(&mut Pcg32::new(1, 0));
+/// assert_eq!(path.len(), 3);
+/// let p = path.pdf();
+/// assert!(p.value() > 0.0 && p.dirac_order() == 1); // the camera point is a Dirac
+/// ```
+pub struct RandomSequence<'s, V> {
+    vertices: SmallVec<[V; INLINE_VERTICES]>,
+    slots: SmallVec<[Slot<'s, V>; INLINE_VERTICES]>,
+    pending: SmallVec<[StrategyRef<'s, V>; INLINE_VERTICES]>,
+    end: Option<(StepKind, Density)>,
+}
+
+impl<V: Clone> Clone for RandomSequence<'_, V> {
+    fn clone(&self) -> Self {
+        RandomSequence { vertices: self.vertices.clone(), slots: self.slots.clone(), pending: self.pending.clone(), end: self.end }
+    }
+}
+
+impl<V: std::fmt::Debug> std::fmt::Debug for RandomSequence<'_, V> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut l = f.debug_list();
+        for (v, s) in self.vertices.iter().zip(&self.slots) {
+            let name = s.strategy.map_or("given", |s| s.name());
+            l.entry(&(name, if s.reversed { "reversed" } else { "forward" }, v));
+        }
+        l.finish()
+    }
+}
+
+impl<V: Vertex> Default for RandomSequence<'_, V> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<'s, V: Vertex> RandomSequence<'s, V> {
+    /// The empty sequence.
+    #[must_use]
+    pub fn new() -> Self {
+        RandomSequence { vertices: SmallVec::new(), slots: SmallVec::new(), pending: SmallVec::new(), end: None }
+    }
+
+    /// A sequence of given vertices that no strategy sampled. Under
+    /// [`pdf_of`](Self::pdf_of) a given vertex acts as a Dirac of mass one
+    /// at itself: it cancels against itself and excludes everything else.
+    pub fn given(vertices: impl IntoIterator<Item = V>) -> Self {
+        let mut s = Self::new();
+        for v in vertices {
+            s.vertices.push(v);
+            s.slots.push(Slot { strategy: None, reversed: false, arity: 1, part: 0, id: fresh_id(), recorded: None });
+        }
+        s
+    }
+
+    /// Appends a strategy to be sampled by the next [`sample`](Self::sample).
+    pub fn append(&mut self, strategy: &'s dyn DynStrategy<V>) -> &mut Self {
+        self.pending.push(StrategyRef::One(strategy));
+        self
+    }
+
+    pub(crate) fn pending_push(&mut self, strategy: StrategyRef<'s, V>) {
+        self.pending.push(strategy);
+    }
+
+    /// Appends a two-vertex strategy (a portal segment) to be sampled by
+    /// the next [`sample`](Self::sample).
+    pub fn append_pair(&mut self, strategy: &'s dyn DynPairStrategy<V>) -> &mut Self {
+        self.pending.push(StrategyRef::Two(strategy));
+        self
+    }
+
+    /// Samples the appended strategies in order, each conditioned on the
+    /// vertices before it. Stops at the first step that produces no vertex
+    /// (Russian-roulette termination, a miss, a void sample), records that
+    /// event, and drops the remaining appended strategies.
+    pub fn sample<R: UniformSource>(&mut self, rng: &mut R) -> StepKind {
+        let pending = std::mem::take(&mut self.pending);
+        for s in pending {
+            let kind = self.sample_step(s, rng);
+            if kind != StepKind::Vertex {
+                return kind;
+            }
+        }
+        StepKind::Vertex
+    }
+
+    /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
+    pub fn append_sample<R: UniformSource>(&mut self, strategy: &'s dyn DynStrategy<V>, rng: &mut R) -> bool {
+        debug_assert!(self.pending.is_empty(), "append_sample after unsampled appends");
+        self.sample_step(StrategyRef::One(strategy), rng) == StepKind::Vertex
+    }
+
+    fn sample_step<R: UniformSource>(&mut self, strategy: StrategyRef<'s, V>, rng: &mut R) -> StepKind {
+        if self.end.is_some() {
+            return self.end.map_or(StepKind::Void, |e| e.0);
+        }
+        let mut out = SmallVec::<[V; 2]>::new();
+        let (kind, density) = strategy.sample_step(Prefix::forward(&self.vertices), rng, &mut out);
+        if kind != StepKind::Vertex {
+            self.end = Some((kind, density));
+            return kind;
+        }
+        let start = self.vertices.len();
+        let arity = out.len();
+        for (part, v) in out.into_iter().enumerate() {
+            self.vertices.push(v);
+            let id = fresh_id();
+            self.slots.push(Slot { strategy: Some(strategy), reversed: false, arity: arity as u8, part: part as u8, id, recorded: None });
+        }
+        let span = Span { start, arity, strategy: Some(strategy), reversed: false, fixed_id: 0 };
+        if let Some(key) = self.key(&span, strategy) {
+            self.slots[start].recorded = Some((key, density));
+        }
+        StepKind::Vertex
+    }
+
+    /// Number of vertices.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// True if there are no vertices.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+
+    /// The vertices in path order.
+    #[must_use]
+    pub fn vertices(&self) -> &[V] {
+        &self.vertices
+    }
+
+    /// The event that ended sampling, with its probability (for instance
+    /// [`StepKind::Terminated`] with mass 1 − q), if sampling ended early.
+    #[must_use]
+    pub fn end(&self) -> Option<(StepKind, Density)> {
+        self.end
+    }
+
+    /// True if vertex `i` is sampled in reverse (by a light-side strategy).
+    #[must_use]
+    pub fn is_reversed(&self, i: usize) -> bool {
+        self.slots[i].reversed
+    }
+
+    /// The name of the strategy that samples vertex `i` (`None` for a given vertex).
+    #[must_use]
+    pub fn strategy_name(&self, i: usize) -> Option<&'static str> {
+        self.slots[i].strategy.map(|s| s.name())
+    }
+
+    /// The vertices in `range` with their strategies. A multi-vertex step
+    /// that the range cuts becomes given vertices.
+    #[must_use]
+    pub fn slice(&self, range: Range<usize>) -> Self {
+        let mut s = Self::new();
+        s.vertices.extend(self.vertices[range.clone()].iter().cloned());
+        s.slots.extend_from_slice(&self.slots[range.clone()]);
+        let mut k = 0;
+        while k < s.slots.len() {
+            let arity = usize::from(s.slots[k].arity);
+            let origin = range.start + k;
+            let cut = arity > 1 && (k + arity > s.slots.len() || self.span_start(origin) != origin);
+            if cut {
+                let slot = &mut s.slots[k];
+                *slot = Slot { strategy: None, arity: 1, part: 0, recorded: None, ..*slot };
+                k += 1;
+            } else {
+                k += arity;
+            }
+        }
+        s
+    }
+
+    /// The leftmost position of the step that holds position `i`.
+    fn span_start(&self, i: usize) -> usize {
+        let mut k = 0;
+        while k < self.slots.len() {
+            let a = usize::from(self.slots[k].arity);
+            if i < k + a {
+                return k;
+            }
+            k += a;
+        }
+        i
+    }
+
+    /// This sequence followed by `other`.
+    #[must_use]
+    pub fn concat(&self, other: &Self) -> Self {
+        let mut s = self.slice(0..self.len());
+        s.vertices.extend(other.vertices.iter().cloned());
+        s.slots.extend_from_slice(&other.slots);
+        s
+    }
+
+    /// The sequence in reverse order, each strategy's direction flipped: a
+    /// light subpath becomes the light end of a camera-to-light path.
+    #[must_use]
+    pub fn reversed(&self) -> Self {
+        let mut s = Self::new();
+        s.vertices.extend(self.vertices.iter().rev().cloned());
+        s.slots.extend(self.slots.iter().rev().map(|slot| Slot { reversed: !slot.reversed, ..*slot }));
+        s
+    }
+
+    /// The same vertices assigned to other strategies: `steps` lists, in
+    /// path order, each strategy and whether it is reversed. `None` if the
+    /// strategies' vertex counts do not add up to this sequence's length.
+    /// Vertex identities are kept, so densities cached for this path are
+    /// reused.
+    #[must_use]
+    pub fn with_strategies(&self, steps: &[(StrategyRef<'s, V>, bool)]) -> Option<Self> {
+        if steps.iter().map(|(s, _)| s.arity()).sum::<usize>() != self.len() {
+            return None;
+        }
+        let mut s = Self { vertices: self.vertices.clone(), slots: self.slots.clone(), pending: SmallVec::new(), end: None };
+        let mut k = 0;
+        for &(strategy, reversed) in steps {
+            let arity = strategy.arity();
+            for p in 0..arity {
+                let part = if reversed { arity - 1 - p } else { p };
+                let slot = &mut s.slots[k + p];
+                *slot = Slot { strategy: Some(strategy), reversed, arity: arity as u8, part: part as u8, ..*slot };
+            }
+            k += arity;
+        }
+        Some(s)
+    }
+
+    /// The steps of this sequence, left to right.
+    pub(crate) fn spans(&self) -> impl Iterator<Item = Span<'s, V>> + '_ {
+        let mut k = 0;
+        std::iter::from_fn(move || {
+            let slot = self.slots.get(k)?;
+            let span = Span { start: k, arity: usize::from(slot.arity), strategy: slot.strategy, reversed: slot.reversed, fixed_id: slot.id };
+            k += span.arity;
+            Some(span)
+        })
+    }
+
+    /// The cache key of `span`'s density factor on this path, if the
+    /// strategy's memory is short enough to cache.
+    fn key(&self, span: &Span<'s, V>, strategy: StrategyRef<'s, V>) -> Option<FactorKey> {
+        let memory = strategy.memory();
+        if memory > 2 {
+            return None;
+        }
+        let end = span.start + span.arity;
+        let mut targets = [0u64; 2];
+        for (t, slot) in targets.iter_mut().zip(&self.slots[span.start..end]) {
+            *t = slot.id;
+        }
+        if span.reversed {
+            targets[..span.arity].reverse();
+        }
+        let mut cond = [0u64; 2];
+        let prefix_len = if span.reversed {
+            for (k, c) in cond.iter_mut().take(memory).enumerate() {
+                *c = self.slots.get(end + k).map_or(0, |s| s.id);
+            }
+            self.len() - end
+        } else {
+            for (k, c) in cond.iter_mut().take(memory.min(span.start)).enumerate() {
+                *c = self.slots[span.start - 1 - k].id;
+            }
+            span.start
+        };
+        Some(FactorKey {
+            strategy: strategy.address(),
+            kind: strategy.name().as_ptr() as usize,
+            prefix_len: prefix_len as u32,
+            targets,
+            cond,
+        })
+    }
+
+    /// The density of this path's vertices in `span`, under the span's
+    /// strategy and direction, reusing the density recorded while sampling
+    /// or a cached one where the key matches.
+    pub(crate) fn factor(&self, span: &Span<'s, V>, cache: Option<&mut FactorCache>) -> Density {
+        let end = span.start + span.arity;
+        if end > self.len() {
+            return Density::zero(Measure::Area);
+        }
+        let Some(strategy) = span.strategy else {
+            return if self.slots[span.start].id == span.fixed_id {
+                Density::dirac(1.0, Measure::Area)
+            } else {
+                Density::zero(Measure::Area)
+            };
+        };
+        let key = self.key(span, strategy);
+        if let Some(key) = key {
+            let first = (span.start..end).find(|&k| self.slots[k].part == 0).unwrap_or(span.start);
+            if let Some((k, d)) = self.slots[first].recorded {
+                if k == key {
+                    return d;
+                }
+            }
+            if let Some(d) = cache.as_ref().and_then(|c| c.get(&key)) {
+                return d;
+            }
+        }
+        let d = if span.reversed {
+            let prefix = Prefix::reversed(&self.vertices[end..]);
+            if span.arity == 1 {
+                strategy.density_of(prefix, &self.vertices[span.start..end])
+            } else {
+                let targets: SmallVec<[V; 2]> = self.vertices[span.start..end].iter().rev().cloned().collect();
+                strategy.density_of(prefix, &targets)
+            }
+        } else {
+            strategy.density_of(Prefix::forward(&self.vertices[..span.start]), &self.vertices[span.start..end])
+        };
+        if let (Some(key), Some(cache)) = (key, cache) {
+            cache.insert(key, d);
+        }
+        d
+    }
+
+    /// The density of this sequence's own vertices under its own
+    /// strategies, in the product of the vertices' measures.
+    #[must_use]
+    pub fn pdf(&self) -> PathDensity {
+        self.pdf_of(self)
+    }
+
+    /// The density with which this sequence's strategies, each in its
+    /// direction, would produce the vertices of `path`: forward strategies
+    /// conditioned on `path`'s earlier vertices, reversed ones on its later
+    /// vertices. Zero if the lengths or step structures differ.
+    #[must_use]
+    pub fn pdf_of(&self, path: &Self) -> PathDensity {
+        if self.len() != path.len() || !self.pending.is_empty() {
+            return PathDensity::ONE.times(Density::zero(Measure::Area));
+        }
+        self.spans().fold(PathDensity::ONE, |p, span| p.times(path.factor(&span, None)))
+    }
+}

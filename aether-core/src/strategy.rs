@@ -1,0 +1,331 @@
+//! Strategies: sampling code written once, run to sample and to evaluate densities.
+
+use smallvec::SmallVec;
+
+use crate::density::{Density, Measure};
+use crate::distribution::{Distribution, Embed, Coords, Step, Uniforms};
+use crate::rng::UniformSource;
+use crate::vertex::{Geometry, Vertex};
+
+/// The vertices a strategy conditions on, most recent first.
+///
+/// For a forward strategy these are the path's earlier vertices; for a
+/// reversed one (a light-subpath strategy inside a camera-to-light path)
+/// they are the later vertices, nearest first. Strategies read them through
+/// this view and never see the direction.
+#[derive(Debug)]
+pub struct Prefix<'a, V> {
+    vertices: &'a [V],
+    reversed: bool,
+}
+
+impl<V> Clone for Prefix<'_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V> Copy for Prefix<'_, V> {}
+
+impl<'a, V> Prefix<'a, V> {
+    /// Vertices in path order: the last one is the most recent.
+    #[must_use]
+    pub fn forward(vertices: &'a [V]) -> Self {
+        Prefix { vertices, reversed: false }
+    }
+
+    /// Vertices in reverse path order: the first one is the most recent.
+    #[must_use]
+    pub fn reversed(vertices: &'a [V]) -> Self {
+        Prefix { vertices, reversed: true }
+    }
+
+    /// Number of conditioning vertices (the depth of the step).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// True at the start of a path.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+
+    /// The `k`-th most recent vertex (0 = the last one).
+    #[must_use]
+    pub fn back(&self, k: usize) -> Option<&'a V> {
+        if k >= self.vertices.len() {
+            return None;
+        }
+        if self.reversed { self.vertices.get(k) } else { self.vertices.get(self.vertices.len() - 1 - k) }
+    }
+
+    /// The most recent vertex.
+    #[must_use]
+    pub fn last(&self) -> Option<&'a V> {
+        self.back(0)
+    }
+}
+
+/// A sampling strategy for one vertex, written once as a composition of
+/// the language's blocks.
+///
+/// [`distribution`](Self::distribution) builds, from the conditioning
+/// vertices only, the distribution of the next vertex. The framework runs it
+/// forward to sample, and backward to evaluate the density of any vertex
+/// (including vertices other strategies produced), without casting rays. A
+/// strategy therefore never writes a pdf.
+///
+/// # Example
+/// ```
+/// use aether_core::{Distribution, Frame, InFrame, Intersect, Prefix, Step, Strategy};
+/// use aether_core::primitives::CosineHemisphere;
+/// use aether_core::testing::{TestScene, TestVertex};
+///
+/// /// Diffuse bounce: a cosine-distributed direction about the normal, then a ray.
+/// struct Bounce<'s>(&'s TestScene);
+///
+/// impl<'s> Strategy<TestVertex> for Bounce<'s> {
+///     fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+///         let x = prefix.last().expect("a bounce needs a vertex to leave from");
+///         Intersect::new(x, InFrame::new(Frame::from_normal(x.normal()), CosineHemisphere), self.0)
+///     }
+///     fn memory(&self) -> usize { 1 }
+/// }
+/// ```
+pub trait Strategy<V: Vertex> {
+    /// The distribution of the next vertex after `prefix`.
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, V>) -> impl Distribution<Value = Step<V>> + 'a;
+
+    /// How many of the most recent conditioning vertices the distribution
+    /// reads (besides the prefix length). Densities of strategies that read
+    /// at most two are cached and shared between MIS candidates; the
+    /// default, "all of them", is always correct but never cached.
+    fn memory(&self) -> usize {
+        usize::MAX
+    }
+}
+
+/// A strategy that samples two vertices at once (a portal segment). The
+/// density is a joint density in the product of the two vertices' measures.
+pub trait PairStrategy<V: Vertex> {
+    /// The joint distribution of the next two vertices after `prefix`, in
+    /// path order.
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, V>) -> impl Distribution<Value = Step<(V, V)>> + 'a;
+
+    /// As [`Strategy::memory`].
+    fn memory(&self) -> usize {
+        usize::MAX
+    }
+}
+
+/// What a step of a sequence produced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepKind {
+    /// One or more vertices.
+    Vertex,
+    /// Russian roulette ended the path.
+    Terminated,
+    /// The ray escaped.
+    Missed,
+    /// The map was undefined at the uniforms drawn (total internal
+    /// reflection, a microfacet facing away).
+    Void,
+}
+
+/// The type-erased form of a [`Strategy`] that sequences store; implemented
+/// for every strategy, not meant to be implemented by hand.
+pub trait DynStrategy<V> {
+    /// As [`Strategy::memory`].
+    fn memory(&self) -> usize;
+    /// The strategy's type name, for reports and cache keys.
+    fn name(&self) -> &'static str;
+    /// Samples one step, pushing its vertex to `out`.
+    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density);
+    /// The density of `target`.
+    fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density;
+}
+
+/// The type-erased form of a [`PairStrategy`]; implemented for every pair
+/// strategy, not meant to be implemented by hand.
+pub trait DynPairStrategy<V> {
+    /// As [`PairStrategy::memory`].
+    fn memory(&self) -> usize;
+    /// The strategy's type name, for reports and cache keys.
+    fn name(&self) -> &'static str;
+    /// Samples one step, pushing its two vertices to `out` in sampling order.
+    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density);
+    /// The joint density of `first` and `second` (in sampling order).
+    fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density;
+}
+
+fn draw(dims: usize, rng: &mut dyn UniformSource) -> Uniforms {
+    (0..dims).map(|_| rng.next_f32()).collect()
+}
+
+fn run<T, D: Distribution<Value = Step<T>>>(d: D, rng: &mut dyn UniformSource, push: impl FnOnce(T)) -> (StepKind, Density) {
+    let u = draw(d.dims(), rng);
+    match d.sample(&u) {
+        Some(s) => match s.value {
+            Step::Vertex(v) => {
+                push(v);
+                (StepKind::Vertex, s.density)
+            }
+            Step::Terminated => (StepKind::Terminated, s.density),
+            Step::Missed => (StepKind::Missed, s.density),
+        },
+        None => (StepKind::Void, Density::zero(Measure::Discrete)),
+    }
+}
+
+impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
+    fn memory(&self) -> usize {
+        Strategy::memory(self)
+    }
+    fn name(&self) -> &'static str {
+        std::any::type_name::<S>()
+    }
+    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+        run(self.distribution(prefix), rng, |v| out.push(v))
+    }
+    fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
+        self.distribution(prefix).density(&Step::Vertex(target.clone()))
+    }
+}
+
+impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
+    fn memory(&self) -> usize {
+        PairStrategy::memory(self)
+    }
+    fn name(&self) -> &'static str {
+        std::any::type_name::<S>()
+    }
+    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+        run(self.distribution(prefix), rng, |(a, b)| {
+            out.push(a);
+            out.push(b);
+        })
+    }
+    fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density {
+        self.distribution(prefix).density(&Step::Vertex((first.clone(), second.clone())))
+    }
+}
+
+/// A stored strategy: one that samples a vertex or one that samples two.
+pub enum StrategyRef<'s, V> {
+    /// A single-vertex strategy.
+    One(&'s dyn DynStrategy<V>),
+    /// A two-vertex strategy.
+    Two(&'s dyn DynPairStrategy<V>),
+}
+
+impl<V> Clone for StrategyRef<'_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V> Copy for StrategyRef<'_, V> {}
+
+impl<V> std::fmt::Debug for StrategyRef<'_, V> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl<'s, V> From<&'s dyn DynStrategy<V>> for StrategyRef<'s, V> {
+    fn from(s: &'s dyn DynStrategy<V>) -> Self {
+        StrategyRef::One(s)
+    }
+}
+
+impl<'s, V> From<&'s dyn DynPairStrategy<V>> for StrategyRef<'s, V> {
+    fn from(s: &'s dyn DynPairStrategy<V>) -> Self {
+        StrategyRef::Two(s)
+    }
+}
+
+impl<V> StrategyRef<'_, V> {
+    /// Vertices per step.
+    #[must_use]
+    pub fn arity(&self) -> usize {
+        match self {
+            StrategyRef::One(_) => 1,
+            StrategyRef::Two(_) => 2,
+        }
+    }
+
+    /// As [`Strategy::memory`].
+    #[must_use]
+    pub fn memory(&self) -> usize {
+        match self {
+            StrategyRef::One(s) => s.memory(),
+            StrategyRef::Two(s) => s.memory(),
+        }
+    }
+
+    /// The strategy's type name.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            StrategyRef::One(s) => s.name(),
+            StrategyRef::Two(s) => s.name(),
+        }
+    }
+
+    /// The address of the strategy object, which with the name identifies it.
+    pub(crate) fn address(&self) -> usize {
+        match self {
+            StrategyRef::One(s) => std::ptr::from_ref(*s).cast::<()>() as usize,
+            StrategyRef::Two(s) => std::ptr::from_ref(*s).cast::<()>() as usize,
+        }
+    }
+
+    /// True if both refer to the same strategy object of the same type.
+    pub(crate) fn same(&self, other: &Self) -> bool {
+        self.address() == other.address() && std::ptr::eq(self.name(), other.name())
+    }
+
+    pub(crate) fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+        match self {
+            StrategyRef::One(s) => s.sample_step(prefix, rng, out),
+            StrategyRef::Two(s) => s.sample_step(prefix, rng, out),
+        }
+    }
+
+    /// The density of `targets`, given in sampling order.
+    pub(crate) fn density_of(&self, prefix: Prefix<'_, V>, targets: &[V]) -> Density {
+        match self {
+            StrategyRef::One(s) => s.density_of(prefix, &targets[0]),
+            StrategyRef::Two(s) => s.density_of(prefix, &targets[0], &targets[1]),
+        }
+    }
+}
+
+/// Embeds a vertex by its geometry: position on a surface, direction at
+/// infinity, nothing for an isolated point.
+fn embed_vertex<V: Vertex>(v: &V, coords: &mut Coords) -> usize {
+    match v.geometry() {
+        Geometry::Surface { .. } => v.position().embed(coords),
+        Geometry::AtInfinity { direction } => direction.embed(coords),
+        Geometry::Point => 0,
+    }
+}
+
+/// A vertex step embeds as its vertex (or vertices).
+impl<V: Vertex> Embed for Step<V> {
+    fn embed(&self, coords: &mut Coords) -> usize {
+        match self {
+            Step::Vertex(v) => embed_vertex(v, coords),
+            _ => 0,
+        }
+    }
+}
+
+impl<V: Vertex> Embed for Step<(V, V)> {
+    fn embed(&self, coords: &mut Coords) -> usize {
+        match self {
+            Step::Vertex((a, b)) => embed_vertex(a, coords) + embed_vertex(b, coords),
+            _ => 0,
+        }
+    }
+}

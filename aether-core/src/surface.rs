@@ -1,0 +1,196 @@
+//! Blocks that produce vertices: the `intersect` primitive, points sampled
+//! on a surface, and Dirac points.
+
+use glam::Vec3;
+
+use crate::density::{Density, Measure};
+use crate::distribution::{Distribution, Sample, Step, Uniforms};
+use crate::vertex::{Geometry, RayCaster, Vertex};
+
+/// The `intersect` primitive: casts a ray from `from` along a sampled
+/// direction and returns the vertex it hits.
+///
+/// Density: the direction's solid-angle density times |cos θₓ| / r² at the
+/// hit point, in area measure (Dirac components included). In density mode
+/// the given vertex is used instead of tracing: a vertex at infinity keeps
+/// its solid-angle density, and an isolated point (a point light, a
+/// pinhole) has density zero, since no ray can hit it.
+///
+/// ```
+/// use aether_core::{Distribution, Frame, InFrame, Intersect, Step};
+/// use aether_core::primitives::CosineHemisphere;
+/// use aether_core::testing::{TestScene, TestVertex};
+/// use glam::Vec3;
+///
+/// let scene = TestScene::open_box();
+/// let from = TestVertex::on_surface(Vec3::ZERO, Vec3::Z);
+/// let bounce = Intersect::new(&from, InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere), &scene);
+/// let hit = bounce.sample(&[0.3, 0.6]).unwrap();
+/// assert!(matches!(hit.value, Step::Vertex(_)));
+/// assert_eq!(bounce.density(&hit.value), hit.density);
+/// ```
+#[derive(Debug)]
+pub struct Intersect<'a, V, D, R> {
+    from: &'a V,
+    directions: D,
+    scene: R,
+}
+
+impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a, V, D, R> {
+    /// Rays from `from` along world directions drawn from `directions`.
+    pub fn new(from: &'a V, directions: D, scene: R) -> Self {
+        Intersect { from, directions, scene }
+    }
+}
+
+/// Converts a solid-angle density at `from` into the measure of vertex `v`.
+/// Returns `None` if `v` cannot be reached by a ray (an isolated point).
+fn direction_to(from: Vec3, v: &impl Vertex) -> Option<(Vec3, f64)> {
+    match v.geometry() {
+        Geometry::Surface { normal } => {
+            let d = (v.position() - from).as_dvec3();
+            let r2 = d.length_squared();
+            if r2 == 0.0 {
+                return None;
+            }
+            let dir = d / r2.sqrt();
+            Some((dir.as_vec3(), normal.as_dvec3().dot(dir).abs() / r2))
+        }
+        Geometry::AtInfinity { direction } => Some((direction, 1.0)),
+        Geometry::Point => None,
+    }
+}
+
+fn measure_of(v: &impl Vertex) -> Measure {
+    match v.geometry() {
+        Geometry::AtInfinity { .. } => Measure::SolidAngle,
+        _ => Measure::Area,
+    }
+}
+
+impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution for Intersect<'_, V, D, R> {
+    type Value = Step<V>;
+    fn dims(&self) -> usize {
+        self.directions.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Step<V>>> {
+        let w = self.directions.sample(u)?;
+        match self.scene.cast(self.from, w.value) {
+            Some(hit) => {
+                let (_, factor) = direction_to(self.from.position(), &hit)?;
+                let density = w.density.convert(factor, measure_of(&hit));
+                Some(Sample::new(Step::Vertex(hit), density))
+            }
+            None => Some(Sample::new(Step::Missed, Density::zero(Measure::SolidAngle))),
+        }
+    }
+    fn density(&self, v: &Step<V>) -> Density {
+        let Step::Vertex(v) = v else { return Density::zero(Measure::Area) };
+        match direction_to(self.from.position(), v) {
+            Some((dir, factor)) => self.directions.density(&dir).convert(factor, measure_of(v)),
+            None => Density::zero(Measure::Area),
+        }
+    }
+    fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
+        let Step::Vertex(v) = v else { return None };
+        let (dir, _) = direction_to(self.from.position(), v)?;
+        self.directions.invert(&dir)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.directions.has_overlapping_branches()
+    }
+}
+
+/// Turns points sampled on a surface (by area) into vertices, with
+/// `at(point)` building the vertex there (its normal, material, emitter).
+///
+/// Density: the point's area density, for target vertices on a surface;
+/// zero for isolated points and vertices at infinity.
+pub struct OnSurface<D, F> {
+    points: D,
+    at: F,
+}
+
+impl<D, F> std::fmt::Debug for OnSurface<D, F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OnSurface").finish_non_exhaustive()
+    }
+}
+
+impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> OnSurface<D, F> {
+    /// Vertices at the points of `points`.
+    pub fn new(points: D, at: F) -> Self {
+        OnSurface { points, at }
+    }
+}
+
+impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> Distribution for OnSurface<D, F> {
+    type Value = Step<V>;
+    fn dims(&self) -> usize {
+        self.points.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Step<V>>> {
+        let p = self.points.sample(u)?;
+        let v = (self.at)(p.value)?;
+        Some(Sample::new(Step::Vertex(v), p.density))
+    }
+    fn density(&self, v: &Step<V>) -> Density {
+        match v {
+            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => self.points.density(&v.position()),
+            _ => Density::zero(Measure::Area),
+        }
+    }
+    fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
+        match v {
+            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => self.points.invert(&v.position()),
+            _ => None,
+        }
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.points.has_overlapping_branches()
+    }
+}
+
+/// A Dirac point: a point light's position, a pinhole. It reads no uniforms.
+///
+/// Density: a Dirac component of the given mass at the vertex, zero for any
+/// other vertex (matched by position, relative to the scene's scale).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiracPoint<V> {
+    vertex: V,
+    mass: f64,
+}
+
+impl<V: Vertex> DiracPoint<V> {
+    /// The point `vertex`, produced with probability `mass`.
+    pub fn new(vertex: V, mass: f64) -> Self {
+        DiracPoint { vertex, mass }
+    }
+}
+
+impl<V: Vertex> Distribution for DiracPoint<V> {
+    type Value = Step<V>;
+    fn dims(&self) -> usize {
+        0
+    }
+    fn sample(&self, _u: &[f32]) -> Option<Sample<Step<V>>> {
+        Some(Sample::new(Step::Vertex(self.vertex.clone()), Density::dirac(self.mass, Measure::Area)))
+    }
+    fn density(&self, v: &Step<V>) -> Density {
+        match v {
+            Step::Vertex(v) if matches!(v.geometry(), Geometry::Point) => {
+                let p = self.vertex.position();
+                let scale = p.abs().max_element().max(1.0);
+                if (v.position() - p).length() <= 1e-5 * scale {
+                    Density::dirac(self.mass, Measure::Area)
+                } else {
+                    Density::zero(Measure::Area)
+                }
+            }
+            _ => Density::zero(Measure::Area),
+        }
+    }
+    fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
+        (!self.density(v).is_zero()).then(Uniforms::new)
+    }
+}

@@ -1,0 +1,374 @@
+//! A tiny analytic scene, its vertex type and a few strategies, for
+//! examples, doctests and the tests of this crate and of the crates that
+//! build on it (the counterpart of obvhs's `test_util`).
+//!
+//! The scene is an open box: a floor and four walls of side 2 around the
+//! origin (z from 0 to 2, no ceiling), a square light facing down at
+//! z = 1.9, a point light, and a sphere.
+
+use glam::Vec3;
+
+use crate::distribution::Step;
+use crate::frame::Frame;
+use crate::harness::Parameterization;
+use crate::primitives::{CosineHemisphere, DiscreteDistribution, UniformTriangle};
+use crate::strategy::{Prefix, Strategy};
+use crate::surface::{DiracPoint, Intersect, OnSurface};
+use crate::vertex::{Geometry, RayCaster, Vertex};
+use crate::{Distribution, InFrame, Select};
+
+/// A vertex of the test scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TestVertex {
+    /// Position.
+    pub position: Vec3,
+    /// Where it lies.
+    pub geometry: Geometry,
+    /// Index of the shape it lies on (`u32::MAX` for points and infinity).
+    pub shape: u32,
+}
+
+impl TestVertex {
+    /// A vertex on a surface with unit normal `normal`, on no particular shape.
+    #[must_use]
+    pub fn on_surface(position: Vec3, normal: Vec3) -> Self {
+        TestVertex { position, geometry: Geometry::Surface { normal }, shape: u32::MAX }
+    }
+
+    /// An isolated point (a pinhole, a point light).
+    #[must_use]
+    pub fn point(position: Vec3) -> Self {
+        TestVertex { position, geometry: Geometry::Point, shape: u32::MAX }
+    }
+
+    /// The geometric normal (+z for points and infinity).
+    #[must_use]
+    pub fn normal(&self) -> Vec3 {
+        match self.geometry {
+            Geometry::Surface { normal } => normal,
+            _ => Vec3::Z,
+        }
+    }
+}
+
+impl Vertex for TestVertex {
+    fn position(&self) -> Vec3 {
+        self.position
+    }
+    fn geometry(&self) -> Geometry {
+        self.geometry
+    }
+}
+
+/// A shape of the test scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shape {
+    /// The parallelogram `corner + s·e1 + t·e2`, s, t ∈ [0, 1], normal e1 × e2.
+    Rect {
+        /// A corner.
+        corner: Vec3,
+        /// First edge.
+        e1: Vec3,
+        /// Second edge.
+        e2: Vec3,
+    },
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius.
+        radius: f32,
+    },
+}
+
+impl Shape {
+    fn hit(&self, o: Vec3, d: Vec3, t_min: f32) -> Option<(f32, Vec3)> {
+        match *self {
+            Shape::Rect { corner, e1, e2 } => {
+                let n = e1.cross(e2);
+                let denom = d.dot(n);
+                if denom.abs() < 1e-12 {
+                    return None;
+                }
+                let t = (corner - o).dot(n) / denom;
+                if t <= t_min {
+                    return None;
+                }
+                let p = o + t * d - corner;
+                let (s, r) = (p.dot(e1) / e1.length_squared(), p.dot(e2) / e2.length_squared());
+                ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| (t, n.normalize()))
+            }
+            Shape::Sphere { center, radius } => {
+                let oc = o - center;
+                let b = oc.dot(d);
+                let c = oc.length_squared() - radius * radius;
+                let disc = b * b - c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let sq = disc.sqrt();
+                let t = [-b - sq, -b + sq].into_iter().find(|&t| t > t_min)?;
+                Some((t, (o + t * d - center).normalize()))
+            }
+        }
+    }
+}
+
+/// The test scene: shapes, the index of the emitting rectangle, a point light.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TestScene {
+    /// All shapes.
+    pub shapes: Vec<Shape>,
+    /// Index of the light rectangle in `shapes`.
+    pub light: usize,
+    /// Position of the point light.
+    pub point_light: Vec3,
+    /// The light rectangle's two triangles, chosen by area.
+    light_triangles: DiscreteDistribution,
+}
+
+impl TestScene {
+    /// The open box described in the module documentation.
+    #[must_use]
+    pub fn open_box() -> Self {
+        let rect = |corner: Vec3, e1: Vec3, e2: Vec3| Shape::Rect { corner, e1, e2 };
+        let shapes = vec![
+            rect(Vec3::new(-1.0, -1.0, 0.0), Vec3::X * 2.0, Vec3::Y * 2.0),
+            rect(Vec3::new(-1.0, -1.0, 0.0), Vec3::Z * 2.0, Vec3::X * 2.0),
+            rect(Vec3::new(-1.0, 1.0, 0.0), Vec3::X * 2.0, Vec3::Z * 2.0),
+            rect(Vec3::new(-1.0, -1.0, 0.0), Vec3::Y * 2.0, Vec3::Z * 2.0),
+            rect(Vec3::new(1.0, -1.0, 0.0), Vec3::Z * 2.0, Vec3::Y * 2.0),
+            rect(Vec3::new(-0.25, -0.25, 1.9), Vec3::Y * 0.5, Vec3::X * 0.5),
+            Shape::Sphere { center: Vec3::new(0.4, 0.3, 0.35), radius: 0.35 },
+        ];
+        let light = 5;
+        let light_triangles = DiscreteDistribution::new(&[1.0, 1.0]).expect("two equal triangles");
+        TestScene { shapes, light, point_light: Vec3::new(-0.5, 0.5, 1.5), light_triangles }
+    }
+
+    /// The vertex at a point of shape `shape` (used by samplers and charts).
+    #[must_use]
+    pub fn vertex_on(&self, shape: usize, p: Vec3) -> TestVertex {
+        let normal = match self.shapes[shape] {
+            Shape::Rect { e1, e2, .. } => e1.cross(e2).normalize(),
+            Shape::Sphere { center, .. } => (p - center).normalize(),
+        };
+        TestVertex { position: p, geometry: Geometry::Surface { normal }, shape: shape as u32 }
+    }
+
+    /// The two triangles of the light rectangle.
+    #[must_use]
+    pub fn light_triangle(&self, i: usize) -> UniformTriangle {
+        let Shape::Rect { corner, e1, e2 } = self.shapes[self.light] else { unreachable!("the light is a rectangle") };
+        if i == 0 {
+            UniformTriangle::new(corner, corner + e1, corner + e1 + e2)
+        } else {
+            UniformTriangle::new(corner, corner + e1 + e2, corner + e2)
+        }
+    }
+}
+
+impl RayCaster<TestVertex> for TestScene {
+    fn cast(&self, from: &TestVertex, direction: Vec3) -> Option<TestVertex> {
+        let o = from.position;
+        let t_min = 1e-4 * o.abs().max_element().max(1.0);
+        let mut best: Option<(f32, usize, Vec3)> = None;
+        for (k, shape) in self.shapes.iter().enumerate() {
+            // A ray cannot re-hit the plane it leaves.
+            if k as u32 == from.shape && matches!(shape, Shape::Rect { .. }) {
+                continue;
+            }
+            if let Some((t, n)) = shape.hit(o, direction, t_min) {
+                if best.is_none_or(|b| t < b.0) {
+                    best = Some((t, k, n));
+                }
+            }
+        }
+        best.map(|(t, k, n)| TestVertex { position: o + t * direction, geometry: Geometry::Surface { normal: n }, shape: k as u32 })
+    }
+}
+
+/// A pinhole: the Dirac point at `position`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPoint {
+    /// Where the pinhole is.
+    pub position: Vec3,
+}
+
+impl Default for CameraPoint {
+    fn default() -> Self {
+        CameraPoint { position: Vec3::new(0.0, 0.0, 1.0) }
+    }
+}
+
+impl Strategy<TestVertex> for CameraPoint {
+    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        DiracPoint::new(TestVertex::point(self.position), 1.0)
+    }
+    fn memory(&self) -> usize {
+        0
+    }
+}
+
+/// A diffuse bounce: a cosine-weighted direction about the last vertex's
+/// normal (on the side of the vertex before it, if any), then a ray.
+#[derive(Clone, Copy, Debug)]
+pub struct Bounce<'s> {
+    scene: &'s TestScene,
+}
+
+impl<'s> Bounce<'s> {
+    /// Bounces in `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene) -> Self {
+        Bounce { scene }
+    }
+}
+
+/// The normal at `x` flipped to the side of `towards` (when there is one).
+#[must_use]
+pub fn facing_normal(x: &TestVertex, towards: Option<&TestVertex>) -> Vec3 {
+    let n = x.normal();
+    match towards {
+        Some(p) if matches!(x.geometry, Geometry::Surface { .. }) && (p.position - x.position).dot(n) < 0.0 => -n,
+        _ => n,
+    }
+}
+
+impl Strategy<TestVertex> for Bounce<'_> {
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let x = prefix.last().expect("a bounce leaves from a vertex");
+        let n = facing_normal(x, prefix.back(1));
+        Intersect::new(x, InFrame::new(Frame::from_normal(n), CosineHemisphere), self.scene)
+    }
+    fn memory(&self) -> usize {
+        2
+    }
+}
+
+/// Area sampling of the light rectangle: a triangle by area, a point on it.
+/// The prefix is ignored, so it serves both as direct light sampling and as
+/// the first vertex of a light subpath.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample<'s> {
+    scene: &'s TestScene,
+}
+
+impl<'s> LightSample<'s> {
+    /// Samples the light of `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene) -> Self {
+        LightSample { scene }
+    }
+}
+
+impl Strategy<TestVertex> for LightSample<'_> {
+    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let scene = self.scene;
+        let on_light = move |i: usize| OnSurface::new(scene.light_triangle(i), move |p| Some(scene.vertex_on(scene.light, p)));
+        let which = move |v: &Step<TestVertex>| match v {
+            Step::Vertex(v) if v.shape as usize == scene.light => {
+                (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
+            }
+            _ => None,
+        };
+        Select::new(&scene.light_triangles, 2, on_light, which)
+    }
+    fn memory(&self) -> usize {
+        0
+    }
+}
+
+/// A chart of a rectangle of the test scene, for chi-square tests of
+/// vertex-valued strategies.
+#[derive(Clone, Copy, Debug)]
+pub struct RectChart<'s> {
+    scene: &'s TestScene,
+    shape: usize,
+}
+
+impl<'s> RectChart<'s> {
+    /// The chart of rectangle `shape` of `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene, shape: usize) -> Self {
+        debug_assert!(matches!(scene.shapes[shape], Shape::Rect { .. }));
+        RectChart { scene, shape }
+    }
+
+    fn edges(&self) -> (Vec3, Vec3, Vec3) {
+        match self.scene.shapes[self.shape] {
+            Shape::Rect { corner, e1, e2 } => (corner, e1, e2),
+            Shape::Sphere { .. } => unreachable!("checked in new"),
+        }
+    }
+}
+
+impl Parameterization<Step<TestVertex>> for RectChart<'_> {
+    fn dims(&self) -> usize {
+        2
+    }
+    fn value(&self, s: [f64; 2]) -> Option<Step<TestVertex>> {
+        let (c, e1, e2) = self.edges();
+        let p = c + e1 * s[0] as f32 + e2 * s[1] as f32;
+        Some(Step::Vertex(self.scene.vertex_on(self.shape, p)))
+    }
+    fn coords(&self, v: &Step<TestVertex>) -> Option<[f64; 2]> {
+        let Step::Vertex(v) = v else { return None };
+        if v.shape as usize != self.shape {
+            return None;
+        }
+        let (c, e1, e2) = self.edges();
+        let d = (v.position - c).as_dvec3();
+        Some([d.dot(e1.as_dvec3()) / f64::from(e1.length_squared()), d.dot(e2.as_dvec3()) / f64::from(e2.length_squared())])
+    }
+    fn jacobian(&self, _s: [f64; 2]) -> f64 {
+        let (_, e1, e2) = self.edges();
+        f64::from(e1.cross(e2).length())
+    }
+}
+
+/// A chart of a sphere of the test scene: (1 − cos θ)/2 and φ/2π about +z.
+#[derive(Clone, Copy, Debug)]
+pub struct SphereChart<'s> {
+    scene: &'s TestScene,
+    shape: usize,
+}
+
+impl<'s> SphereChart<'s> {
+    /// The chart of sphere `shape` of `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene, shape: usize) -> Self {
+        debug_assert!(matches!(scene.shapes[shape], Shape::Sphere { .. }));
+        SphereChart { scene, shape }
+    }
+
+    fn sphere(&self) -> (Vec3, f32) {
+        match self.scene.shapes[self.shape] {
+            Shape::Sphere { center, radius } => (center, radius),
+            Shape::Rect { .. } => unreachable!("checked in new"),
+        }
+    }
+}
+
+impl Parameterization<Step<TestVertex>> for SphereChart<'_> {
+    fn dims(&self) -> usize {
+        2
+    }
+    fn value(&self, s: [f64; 2]) -> Option<Step<TestVertex>> {
+        let (c, r) = self.sphere();
+        let w = crate::harness::SphereDirections.value(s)?;
+        Some(Step::Vertex(self.scene.vertex_on(self.shape, c + r * w)))
+    }
+    fn coords(&self, v: &Step<TestVertex>) -> Option<[f64; 2]> {
+        let Step::Vertex(v) = v else { return None };
+        if v.shape as usize != self.shape {
+            return None;
+        }
+        let (c, _) = self.sphere();
+        crate::harness::SphereDirections.coords(&(v.position - c).normalize())
+    }
+    fn jacobian(&self, _s: [f64; 2]) -> f64 {
+        let r = f64::from(self.sphere().1);
+        4.0 * std::f64::consts::PI * r * r
+    }
+}

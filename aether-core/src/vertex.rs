@@ -1,0 +1,47 @@
+//! What the language needs to know about a path vertex and about the scene.
+
+use glam::Vec3;
+
+/// Where a vertex lies, which fixes the measure its density is expressed in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Geometry {
+    /// On a surface with this unit geometric normal: area measure.
+    Surface {
+        /// Geometric normal (either orientation).
+        normal: Vec3,
+    },
+    /// An isolated point (a point light, a pinhole): only a Dirac
+    /// component can produce it.
+    Point,
+    /// At infinity in this unit direction (an environment): solid angle.
+    AtInfinity {
+        /// Direction from the scene towards the vertex.
+        direction: Vec3,
+    },
+}
+
+/// A path vertex. Scene layers define their own (with material, emitter and
+/// shading frame); the language only reads position and geometry.
+pub trait Vertex: Clone {
+    /// Position in world space (unused for vertices at infinity).
+    fn position(&self) -> Vec3;
+    /// The kind of place the vertex lies on.
+    fn geometry(&self) -> Geometry;
+}
+
+/// Casts rays: the only way sampling code touches the scene's geometry.
+///
+/// Density evaluation never calls it (the target vertex is given).
+pub trait RayCaster<V> {
+    /// The first vertex hit by the ray leaving `from` in unit `direction`,
+    /// a vertex at infinity if the ray escapes into an environment emitter,
+    /// or `None` if it escapes into nothing. Offsetting the origin to avoid
+    /// self-intersection is the caster's job.
+    fn cast(&self, from: &V, direction: Vec3) -> Option<V>;
+}
+
+impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
+    fn cast(&self, from: &V, direction: Vec3) -> Option<V> {
+        (**self).cast(from, direction)
+    }
+}

@@ -1,0 +1,2 @@
+//! Short programs that reproduce the Aether examples; see `examples/`.
+#![deny(unsafe_code)]
