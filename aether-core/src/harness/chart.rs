@@ -28,8 +28,9 @@ pub trait Chart<T> {
     fn integrate(&self, cell: usize, density: &dyn Fn(&T) -> f64) -> f64;
 }
 
-/// A regular grid of `n` cells per chart dimension, integrated by composite
-/// three-point Gauss–Legendre quadrature (4 panels per cell and dimension).
+/// A regular grid of `n` cells per chart dimension, integrated by adaptive
+/// three-point Gauss–Legendre quadrature (panels are halved where the
+/// density jumps or peaks, such as at the rim of a cone).
 #[derive(Clone, Copy, Debug)]
 pub struct Grid<P> {
     param: P,
@@ -59,31 +60,71 @@ impl<T, P: Parameterization<T>> Chart<T> for Grid<P> {
         }
     }
     fn integrate(&self, cell: usize, density: &dyn Fn(&T) -> f64) -> f64 {
-        let two_d = self.param.dims() == 2;
-        let (cx, cy) = if two_d { (cell % self.n, cell / self.n) } else { (cell, 0) };
-        let width = 1.0 / (self.n * PANELS) as f64;
-        // Nodes and weights along one dimension of the cell.
-        let nodes = |c: usize| {
-            (0..PANELS).flat_map(move |p| {
-                let lo = (c * PANELS + p) as f64 * width;
-                GAUSS.iter().map(move |&(x, w)| (lo + (x + 1.0) * 0.5 * width, w * 0.5 * width))
-            })
+        let h = 1.0 / self.n as f64;
+        let f = |s: [f64; 2]| match self.param.value(s) {
+            Some(v) => {
+                let p = density(&v);
+                if p > 0.0 { p * self.param.jacobian(s) } else { 0.0 }
+            }
+            None => 0.0,
         };
+        let panel = h / PANELS as f64;
         let mut total = 0.0;
-        for (x, wx) in nodes(cx) {
-            let ys: Vec<(f64, f64)> = if two_d { nodes(cy).collect() } else { vec![(0.5, 1.0)] };
-            for (y, wy) in ys {
-                let s = [x, y];
-                if let Some(v) = self.param.value(s) {
-                    let f = density(&v);
-                    if f > 0.0 {
-                        total += wx * wy * f * self.param.jacobian(s);
-                    }
+        if self.param.dims() == 2 {
+            let (cx, cy) = (cell % self.n, cell / self.n);
+            for i in 0..PANELS {
+                for j in 0..PANELS {
+                    let x0 = cx as f64 * h + i as f64 * panel;
+                    let y0 = cy as f64 * h + j as f64 * panel;
+                    total += adaptive_2d(&f, [x0, y0], panel, gauss_2d(&f, [x0, y0], panel), 0);
                 }
+            }
+        } else {
+            for i in 0..PANELS {
+                let x0 = cell as f64 * h + i as f64 * panel;
+                total += adaptive_1d(&f, x0, panel, gauss_1d(&f, x0, panel), 0);
             }
         }
         total
     }
+}
+
+/// Refinement stops at this depth, or where halving changes a panel's
+/// integral by less than `TOLERANCE` times its chart area.
+const MAX_DEPTH: u32 = 8;
+const TOLERANCE: f64 = 1e-5;
+
+fn gauss_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64) -> f64 {
+    GAUSS.iter().map(|&(x, wx)| wx * 0.5 * w * f([x0 + (x + 1.0) * 0.5 * w, 0.5])).sum()
+}
+
+fn adaptive_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64, coarse: f64, depth: u32) -> f64 {
+    let (a, b) = (gauss_1d(f, x0, w / 2.0), gauss_1d(f, x0 + w / 2.0, w / 2.0));
+    if depth >= MAX_DEPTH || (a + b - coarse).abs() <= TOLERANCE * w {
+        return a + b;
+    }
+    adaptive_1d(f, x0, w / 2.0, a, depth + 1) + adaptive_1d(f, x0 + w / 2.0, w / 2.0, b, depth + 1)
+}
+
+fn gauss_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64) -> f64 {
+    let mut total = 0.0;
+    for &(x, wx) in &GAUSS {
+        for &(y, wy) in &GAUSS {
+            total += wx * wy * 0.25 * w * w * f([o[0] + (x + 1.0) * 0.5 * w, o[1] + (y + 1.0) * 0.5 * w]);
+        }
+    }
+    total
+}
+
+fn adaptive_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64, coarse: f64, depth: u32) -> f64 {
+    let half = w / 2.0;
+    let corners = [[o[0], o[1]], [o[0] + half, o[1]], [o[0], o[1] + half], [o[0] + half, o[1] + half]];
+    let parts = corners.map(|c| gauss_2d(f, c, half));
+    let fine: f64 = parts.iter().sum();
+    if depth >= MAX_DEPTH || (fine - coarse).abs() <= TOLERANCE * w * w {
+        return fine;
+    }
+    corners.iter().zip(parts).map(|(c, p)| adaptive_2d(f, *c, half, p, depth + 1)).sum()
 }
 
 /// Discrete outcomes `0..n`, one cell each.

@@ -60,9 +60,10 @@ fn determinant(a: &mut [Vec<f64>]) -> f64 {
     det
 }
 
-/// 1/√pdet(JᵀJ) with central differences of step `h`, or `None` where the
-/// map is undefined or changes manifold nearby.
-fn finite_difference_density<D>(d: &D, u: &[f32], h: f32) -> Option<f64>
+/// 1/√pdet(JᵀJ) by central differences of step `h` and of step `h/2`, or
+/// `None` where the map is undefined nearby, changes manifold, or has a
+/// kink (one-sided differences that do not converge as the step halves).
+fn finite_difference_densities<D>(d: &D, u: &[f32], h: f32) -> Option<(f64, f64)>
 where
     D: Distribution,
     D::Value: Embed,
@@ -71,21 +72,39 @@ where
     if m == 0 {
         return None;
     }
-    let mut columns = Vec::with_capacity(u.len());
+    let at = |k: usize, delta: f32| -> Option<(Coords, f64)> {
+        let mut v = u.to_vec();
+        v[k] = (u[k] + delta).clamp(0.0, 1.0 - f32::EPSILON);
+        let (c, mv) = embed(&d.sample(&v)?.value);
+        (mv == m && c.len() == c0.len()).then_some((c, f64::from(v[k]) - f64::from(u[k])))
+    };
+    let diff = |a: &Coords, b: &Coords, step: f64| a.iter().zip(b).map(|(x, y)| (x - y) / step).collect::<Coords>();
+    let norm = |c: &Coords| c.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let (mut coarse, mut fine) = (Vec::with_capacity(u.len()), Vec::with_capacity(u.len()));
     for k in 0..u.len() {
-        let (mut up, mut down) = (u.to_vec(), u.to_vec());
-        up[k] = (u[k] + h).min(1.0 - f32::EPSILON);
-        down[k] = (u[k] - h).max(0.0);
-        let step = f64::from(up[k]) - f64::from(down[k]);
-        let (cp, mp) = embed(&d.sample(&up)?.value);
-        let (cm, mm) = embed(&d.sample(&down)?.value);
-        if mp != m || mm != m || cp.len() != c0.len() || cm.len() != c0.len() {
+        let (p2, s_p2) = at(k, h)?;
+        let (m2, s_m2) = at(k, -h)?;
+        let (p1, s_p1) = at(k, h / 2.0)?;
+        let (m1, s_m1) = at(k, -h / 2.0)?;
+        // One-sided slopes disagree by O(h) on smooth maps, by O(1) at a kink.
+        let kink = |plus: &Coords, sp: f64, minus: &Coords, sm: f64| {
+            let forward = diff(plus, &c0, sp);
+            let backward = diff(&c0, minus, -sm);
+            norm(&diff(&forward, &backward, 1.0))
+        };
+        let (k2, k1) = (kink(&p2, s_p2, &m2, s_m2), kink(&p1, s_p1, &m1, s_m1));
+        let central = diff(&p1, &m1, s_p1 - s_m1);
+        if k1 > 1e-3 * norm(&central).max(1e-12) && k1 > 0.7 * k2 {
             return None;
         }
-        columns.push(cp.iter().zip(&cm).map(|(a, b)| (a - b) / step).collect::<Coords>());
+        coarse.push(diff(&p2, &m2, s_p2 - s_m2));
+        fine.push(central);
     }
-    let det = gram_pseudo_determinant(&columns, m);
-    (det > 0.0).then(|| 1.0 / det.sqrt())
+    let density = |columns: &[Coords]| {
+        let det = gram_pseudo_determinant(columns, m);
+        (det > 0.0).then(|| 1.0 / det.sqrt())
+    };
+    Some((density(&coarse)?, density(&fine)?))
 }
 
 fn distance(a: &Coords, b: &Coords) -> f64 {
@@ -186,9 +205,7 @@ where
     if s.density.is_dirac() || d.has_overlapping_branches() || embed(&s.value).1 == 0 {
         return None;
     }
-    let coarse = finite_difference_density(d, u, STEP);
-    let fine = finite_difference_density(d, u, STEP / 2.0);
-    let (Some(coarse), Some(fine)) = (coarse, fine) else {
+    let Some((coarse, fine)) = finite_difference_densities(d, u, STEP) else {
         tally.skipped += 1;
         return None;
     };

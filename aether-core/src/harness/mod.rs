@@ -157,13 +157,6 @@ pub enum Failure {
         /// The worst cells: (cell, observed, expected).
         worst: Vec<(String, f64, f64)>,
     },
-    /// Samples landed where the density integrates to zero.
-    SamplesOutsideSupport {
-        /// The cell.
-        cell: String,
-        /// How many samples.
-        observed: f64,
-    },
     /// The density integrates to more than one.
     IntegralAboveOne {
         /// The integral.
@@ -194,9 +187,6 @@ impl fmt::Display for Failure {
                     write!(f, " [{c}: {o} vs {e:.1}]")?;
                 }
                 Ok(())
-            }
-            Failure::SamplesOutsideSupport { cell, observed } => {
-                write!(f, "(c) {observed} samples landed in cell {cell}, where the density integrates to zero")
             }
             Failure::IntegralAboveOne { integral } => write!(f, "(c) the density integrates to {integral:.6} > 1"),
         }
