@@ -82,9 +82,13 @@ pub enum Shape {
 }
 
 impl Shape {
+    /// Ray intersection in double precision, so that finite differences of
+    /// hit points in tests are not dominated by rounding.
     fn hit(&self, o: Vec3, d: Vec3, t_min: f32) -> Option<(f32, Vec3)> {
+        let (o, d, t_min) = (o.as_dvec3(), d.as_dvec3(), f64::from(t_min));
         match *self {
             Shape::Rect { corner, e1, e2 } => {
+                let (corner, e1, e2) = (corner.as_dvec3(), e1.as_dvec3(), e2.as_dvec3());
                 let n = e1.cross(e2);
                 let denom = d.dot(n);
                 if denom.abs() < 1e-12 {
@@ -96,19 +100,21 @@ impl Shape {
                 }
                 let p = o + t * d - corner;
                 let (s, r) = (p.dot(e1) / e1.length_squared(), p.dot(e2) / e2.length_squared());
-                ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| (t, n.normalize()))
+                ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| (t as f32, n.normalize().as_vec3()))
             }
             Shape::Sphere { center, radius } => {
-                let oc = o - center;
+                let oc = o - center.as_dvec3();
+                let r = f64::from(radius);
                 let b = oc.dot(d);
-                let c = oc.length_squared() - radius * radius;
-                let disc = b * b - c;
+                // The discriminant from the perpendicular distance, without cancellation.
+                let perp = oc - b * d;
+                let disc = r * r - perp.length_squared();
                 if disc < 0.0 {
                     return None;
                 }
                 let sq = disc.sqrt();
                 let t = [-b - sq, -b + sq].into_iter().find(|&t| t > t_min)?;
-                Some((t, (o + t * d - center).normalize()))
+                Some((t as f32, ((oc + t * d) / r).as_vec3()))
             }
         }
     }
@@ -184,7 +190,10 @@ impl RayCaster<TestVertex> for TestScene {
                 }
             }
         }
-        best.map(|(t, k, n)| TestVertex { position: o + t * direction, geometry: Geometry::Surface { normal: n }, shape: k as u32 })
+        best.map(|(t, k, n)| {
+            let position = (o.as_dvec3() + f64::from(t) * direction.as_dvec3()).as_vec3();
+            TestVertex { position, geometry: Geometry::Surface { normal: n }, shape: k as u32 }
+        })
     }
 }
 
@@ -327,19 +336,32 @@ impl Parameterization<Step<TestVertex>> for RectChart<'_> {
     }
 }
 
-/// A chart of a sphere of the test scene: (1 − cos θ)/2 and φ/2π about +z.
+/// A chart of a spherical cap of a sphere of the test scene, about an
+/// axis: ((1 − cos θ)/(1 − cos θ_cap), φ/2π).
 #[derive(Clone, Copy, Debug)]
 pub struct SphereChart<'s> {
     scene: &'s TestScene,
     shape: usize,
+    frame: Frame,
+    one_minus_cos_cap: f64,
 }
 
 impl<'s> SphereChart<'s> {
-    /// The chart of sphere `shape` of `scene`.
+    /// The chart of the whole sphere `shape` of `scene`.
     #[must_use]
     pub fn new(scene: &'s TestScene, shape: usize) -> Self {
         debug_assert!(matches!(scene.shapes[shape], Shape::Sphere { .. }));
-        SphereChart { scene, shape }
+        SphereChart { scene, shape, frame: Frame::WORLD, one_minus_cos_cap: 2.0 }
+    }
+
+    /// The chart of the cap of sphere `shape` that is visible from `point`.
+    #[must_use]
+    pub fn visible_from(scene: &'s TestScene, shape: usize, point: Vec3) -> Self {
+        let chart = Self::new(scene, shape);
+        let (c, r) = chart.sphere();
+        let d = point - c;
+        let cos_cap = f64::from(r) / f64::from(d.length());
+        SphereChart { frame: Frame::from_normal(d.normalize()), one_minus_cos_cap: 1.0 - cos_cap, ..chart }
     }
 
     fn sphere(&self) -> (Vec3, f32) {
@@ -356,8 +378,11 @@ impl Parameterization<Step<TestVertex>> for SphereChart<'_> {
     }
     fn value(&self, s: [f64; 2]) -> Option<Step<TestVertex>> {
         let (c, r) = self.sphere();
-        let w = crate::harness::SphereDirections.value(s)?;
-        Some(Step::Vertex(self.scene.vertex_on(self.shape, c + r * w)))
+        let omc = s[0] * self.one_minus_cos_cap;
+        let sin = (omc * (2.0 - omc)).max(0.0).sqrt();
+        let phi = std::f64::consts::TAU * s[1];
+        let local = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, (1.0 - omc) as f32);
+        Some(Step::Vertex(self.scene.vertex_on(self.shape, c + r * self.frame.to_world(local))))
     }
     fn coords(&self, v: &Step<TestVertex>) -> Option<[f64; 2]> {
         let Step::Vertex(v) = v else { return None };
@@ -365,10 +390,14 @@ impl Parameterization<Step<TestVertex>> for SphereChart<'_> {
             return None;
         }
         let (c, _) = self.sphere();
-        crate::harness::SphereDirections.coords(&(v.position - c).normalize())
+        let local = self.frame.to_local((v.position - c).normalize()).as_dvec3();
+        let omc = if local.z > 0.0 { (local.x * local.x + local.y * local.y) / (1.0 + local.z) } else { 1.0 - local.z };
+        let s0 = omc / self.one_minus_cos_cap;
+        let phi = local.y.atan2(local.x);
+        (s0 <= 1.0).then_some([s0, if phi < 0.0 { phi / std::f64::consts::TAU + 1.0 } else { phi / std::f64::consts::TAU }])
     }
     fn jacobian(&self, _s: [f64; 2]) -> f64 {
         let r = f64::from(self.sphere().1);
-        4.0 * std::f64::consts::PI * r * r
+        std::f64::consts::TAU * self.one_minus_cos_cap * r * r
     }
 }

@@ -204,7 +204,7 @@ proptest! {
         let wi = Vec3::new(x, y, 0.2 + (1.0 - x * x - y * y).max(0.0).sqrt()).normalize();
         let config = Check { cases: 64, samples: 20_000, ..Check::default() };
         let d = Reflect::new(wi, GgxVisibleNormals::new(ax, ay, wi));
-        check(&d, &Grid::new(SphereDirections, 8), &config).map_err(|f| TestCaseError::fail(f.to_string()))?;
+        check(&d, &Grid::new(SphereDirections, 12), &config).map_err(|f| TestCaseError::fail(f.to_string()))?;
     }
 
     /// Round trips of the concentric map and cone over the whole square.

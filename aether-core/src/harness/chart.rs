@@ -92,6 +92,9 @@ impl<T, P: Parameterization<T>> Chart<T> for Grid<P> {
 /// Refinement stops at this depth, or where halving changes a panel's
 /// integral by less than `TOLERANCE` times its chart area.
 const MAX_DEPTH: u32 = 8;
+/// Panels are always halved this often, so that a coarse and a fine rule
+/// agreeing by chance across a jump do not stop refinement.
+const MIN_DEPTH: u32 = 1;
 const TOLERANCE: f64 = 1e-5;
 
 fn gauss_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64) -> f64 {
@@ -100,7 +103,7 @@ fn gauss_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64) -> f64 {
 
 fn adaptive_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64, coarse: f64, depth: u32) -> f64 {
     let (a, b) = (gauss_1d(f, x0, w / 2.0), gauss_1d(f, x0 + w / 2.0, w / 2.0));
-    if depth >= MAX_DEPTH || (a + b - coarse).abs() <= TOLERANCE * w {
+    if depth >= MAX_DEPTH || (depth >= MIN_DEPTH && (a + b - coarse).abs() <= TOLERANCE * w) {
         return a + b;
     }
     adaptive_1d(f, x0, w / 2.0, a, depth + 1) + adaptive_1d(f, x0 + w / 2.0, w / 2.0, b, depth + 1)
@@ -121,7 +124,7 @@ fn adaptive_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64, coarse: f64, de
     let corners = [[o[0], o[1]], [o[0] + half, o[1]], [o[0], o[1] + half], [o[0] + half, o[1] + half]];
     let parts = corners.map(|c| gauss_2d(f, c, half));
     let fine: f64 = parts.iter().sum();
-    if depth >= MAX_DEPTH || (fine - coarse).abs() <= TOLERANCE * w * w {
+    if depth >= MAX_DEPTH || (depth >= MIN_DEPTH && (fine - coarse).abs() <= TOLERANCE * w * w) {
         return fine;
     }
     corners.iter().zip(parts).map(|(c, p)| adaptive_2d(f, *c, half, p, depth + 1)).sum()

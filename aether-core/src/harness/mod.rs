@@ -10,9 +10,11 @@
 //! * **inversion**: sampling the uniforms that `invert` returns gives the value back;
 //! * **(b) Jacobian**: the density equals 1/√det(JᵀJ), with J the finite
 //!   differences of the forward map from uniforms to the value's embedding
-//!   (area on a surface, solid angle for directions), to relative error
-//!   1e-3. Regions where two step sizes disagree (singular or discontinuous
-//!   regions) are skipped and counted; too many skips fail the check.
+//!   (area on a surface, solid angle for directions), extrapolated from two
+//!   step sizes (Richardson), to relative error 1e-3. Regions where the two
+//!   steps disagree by more than 1 % or one-sided differences reveal a kink
+//!   (singular or discontinuous regions) are skipped and counted; too many
+//!   skips fail the check.
 //!   Discrete choices enter through the remapped uniform, so J includes
 //!   their probabilities; mixtures of overlapping lobes are checked lobe by lobe;
 //! * **(c) chi-square**: a histogram of samples over a [`Chart`] against the
