@@ -152,7 +152,9 @@ thread_local! {
 ///
 /// `candidates[i]` is a path together with the strategies that sampled it.
 /// Its weight uses the density of its vertices under every candidate's
-/// strategies (candidates of another length give zero). Densities are
+/// strategies (candidates of another length give zero). A candidate whose
+/// sampling stopped early (a miss, Russian roulette) gets weight zero but
+/// still counts as a technique for the others. Densities are
 /// cached by (strategy, depth, target and conditioning vertices), so a
 /// vertex shared by several candidates, such as a camera-subpath vertex in
 /// BDPT, has its forward and reverse densities evaluated once; each
@@ -212,10 +214,14 @@ fn combine_with<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heur
 
     let mut weights = Weights::new();
     for (i, x) in candidates.iter().enumerate() {
+        if !x.is_complete() {
+            weights.push(0.0);
+            continue;
+        }
         densities.clear();
         let mut running: Option<PathDensity> = None;
         for j in 0..m {
-            if candidates[j].len() != x.len() {
+            if candidates[j].technique_len() != x.len() {
                 densities.push(zero);
                 running = None;
                 continue;

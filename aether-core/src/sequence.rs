@@ -143,12 +143,22 @@ pub struct RandomSequence<'s, V> {
     vertices: SmallVec<[V; INLINE_VERTICES]>,
     slots: SmallVec<[Slot<'s, V>; INLINE_VERTICES]>,
     pending: SmallVec<[StrategyRef<'s, V>; INLINE_VERTICES]>,
+    /// Steps whose sampling failed or never ran because an earlier one
+    /// failed: the sequence keeps them as a technique, so that MIS can
+    /// still weigh other paths by the densities they would have had.
+    unsampled: SmallVec<[StrategyRef<'s, V>; 4]>,
     end: Option<(StepKind, Density)>,
 }
 
 impl<V: Clone> Clone for RandomSequence<'_, V> {
     fn clone(&self) -> Self {
-        RandomSequence { vertices: self.vertices.clone(), slots: self.slots.clone(), pending: self.pending.clone(), end: self.end }
+        RandomSequence {
+            vertices: self.vertices.clone(),
+            slots: self.slots.clone(),
+            pending: self.pending.clone(),
+            unsampled: self.unsampled.clone(),
+            end: self.end,
+        }
     }
 }
 
@@ -173,7 +183,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// The empty sequence.
     #[must_use]
     pub fn new() -> Self {
-        RandomSequence { vertices: SmallVec::new(), slots: SmallVec::new(), pending: SmallVec::new(), end: None }
+        RandomSequence { vertices: SmallVec::new(), slots: SmallVec::new(), pending: SmallVec::new(), unsampled: SmallVec::new(), end: None }
     }
 
     /// A sequence of given vertices that no strategy sampled. Under
@@ -207,29 +217,33 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// Samples the appended strategies in order, each conditioned on the
     /// vertices before it. Stops at the first step that produces no vertex
-    /// (Russian-roulette termination, a miss, a void sample), records that
-    /// event, and drops the remaining appended strategies.
+    /// (Russian-roulette termination, a miss, a void sample) and records
+    /// that event. The failed step and those after it stay in the sequence
+    /// as unsampled steps: the sequence has no density as a path of its
+    /// full length, but still counts as a technique in
+    /// [`combine`](crate::combine) and [`pdf_of`](Self::pdf_of).
     pub fn sample<R: UniformSource>(&mut self, rng: &mut R) -> StepKind {
         let pending = std::mem::take(&mut self.pending);
+        let mut result = StepKind::Vertex;
         for s in pending {
-            let kind = self.sample_step(s, rng);
-            if kind != StepKind::Vertex {
-                return kind;
+            if result == StepKind::Vertex {
+                result = self.sample_step(s, rng);
+                if result == StepKind::Vertex {
+                    continue;
+                }
             }
+            self.unsampled.push(s);
         }
-        StepKind::Vertex
+        result
     }
 
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
     pub fn append_sample<R: UniformSource>(&mut self, strategy: &'s dyn DynStrategy<V>, rng: &mut R) -> bool {
-        debug_assert!(self.pending.is_empty(), "append_sample after unsampled appends");
-        self.sample_step(StrategyRef::One(strategy), rng) == StepKind::Vertex
+        self.append(strategy);
+        self.sample(rng) == StepKind::Vertex
     }
 
     fn sample_step<R: UniformSource>(&mut self, strategy: StrategyRef<'s, V>, rng: &mut R) -> StepKind {
-        if self.end.is_some() {
-            return self.end.map_or(StepKind::Void, |e| e.0);
-        }
         let mut out = SmallVec::<[V; 2]>::new();
         let (kind, density) = strategy.sample_step(Prefix::forward(&self.vertices), rng, &mut out);
         if kind != StepKind::Vertex {
@@ -254,6 +268,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     #[must_use]
     pub fn len(&self) -> usize {
         self.vertices.len()
+    }
+
+    /// True if every appended step produced its vertices.
+    #[must_use]
+    pub fn is_complete(&self) -> bool {
+        self.unsampled.is_empty() && self.pending.is_empty()
+    }
+
+    /// The number of vertices of the paths this sequence's strategies
+    /// produce: its length plus the vertices of unsampled steps.
+    #[must_use]
+    pub fn technique_len(&self) -> usize {
+        self.len() + self.unsampled.iter().map(StrategyRef::arity).sum::<usize>()
     }
 
     /// True if there are no vertices.
@@ -352,7 +379,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         if steps.iter().map(|(s, _)| s.arity()).sum::<usize>() != self.len() {
             return None;
         }
-        let mut s = Self { vertices: self.vertices.clone(), slots: self.slots.clone(), pending: SmallVec::new(), end: None };
+        let mut s = Self { vertices: self.vertices.clone(), slots: self.slots.clone(), ..Self::new() };
         let mut k = 0;
         for &(strategy, reversed) in steps {
             let arity = strategy.arity();
@@ -369,12 +396,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// The steps of this sequence, left to right.
     pub(crate) fn spans(&self) -> impl Iterator<Item = Span<'s, V>> + '_ {
         let mut k = 0;
-        std::iter::from_fn(move || {
+        let sampled = std::iter::from_fn(move || {
             let slot = self.slots.get(k)?;
             let span = Span { start: k, arity: usize::from(slot.arity), strategy: slot.strategy, reversed: slot.reversed, fixed_id: slot.id };
             k += span.arity;
             Some(span)
-        })
+        });
+        let mut start = self.len();
+        let unsampled = self.unsampled.iter().map(move |s| {
+            let span = Span { start, arity: s.arity(), strategy: Some(*s), reversed: false, fixed_id: 0 };
+            start += span.arity;
+            span
+        });
+        sampled.chain(unsampled)
     }
 
     /// The cache key of `span`'s density factor on this path, if the
@@ -467,10 +501,11 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// The density with which this sequence's strategies, each in its
     /// direction, would produce the vertices of `path`: forward strategies
     /// conditioned on `path`'s earlier vertices, reversed ones on its later
-    /// vertices. Zero if the lengths or step structures differ.
+    /// vertices. Unsampled steps count. Zero if the lengths or step
+    /// structures differ, or if `path` is incomplete.
     #[must_use]
     pub fn pdf_of(&self, path: &Self) -> PathDensity {
-        if self.len() != path.len() || !self.pending.is_empty() {
+        if self.technique_len() != path.len() || !path.is_complete() || !self.pending.is_empty() {
             return PathDensity::ONE.times(Density::zero(Measure::Area));
         }
         self.spans().fold(PathDensity::ONE, |p, span| p.times(path.factor(&span, None)))

@@ -1,0 +1,243 @@
+//! MIS: partition of unity (d), Dirac lobes and point lights, exact
+//! cancellation of Dirac masses, BDPT-style candidates against direct
+//! evaluation, and unbiasedness of a two-strategy estimator.
+
+use aether_core::harness::{Technique, check_mis};
+use aether_core::primitives::{CosineHemisphere, DiracDirection, DiscreteDistribution, UniformCone};
+use aether_core::testing::{Bounce, CameraPoint, LightSample, TestScene, TestVertex, facing_normal};
+use aether_core::{
+    DiracPoint, Distribution, Either, Frame, Geometry, Heuristic, InFrame, Intersect, Mixture, OnSurface, Pcg32, Prefix, RandomSequence, Select, Step,
+    Strategy, combine, reflect,
+};
+use glam::Vec3;
+
+/// From the pinhole, a uniform direction in a cone looking down, then a ray.
+struct Look<'s>(&'s TestScene);
+
+impl Strategy<TestVertex> for Look<'_> {
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let eye = prefix.last().expect("the pinhole");
+        Intersect::new(eye, InFrame::new(Frame::from_normal(-Vec3::Z), UniformCone::new(0.6)), self.0)
+    }
+    fn memory(&self) -> usize {
+        1
+    }
+}
+
+/// A BSDF with a diffuse lobe and a mirror lobe (a Dirac).
+struct DiffuseAndMirror<'s> {
+    scene: &'s TestScene,
+    lobes: DiscreteDistribution,
+}
+
+impl Strategy<TestVertex> for DiffuseAndMirror<'_> {
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let x = prefix.last().expect("a shading point");
+        let from = prefix.back(1).expect("an incoming direction");
+        let n = facing_normal(x, Some(from));
+        let wi = (from.position - x.position).normalize();
+        let lobe = move |i: usize| match i {
+            0 => Either::Left(InFrame::new(Frame::from_normal(n), CosineHemisphere)),
+            _ => Either::Right(DiracDirection::new(reflect(wi, n), 1.0)),
+        };
+        Intersect::new(x, Mixture::new(&self.lobes, 2, lobe), self.scene)
+    }
+    fn memory(&self) -> usize {
+        2
+    }
+}
+
+/// Light selection by power between the area light (two triangles) and the
+/// point light, then a point on the chosen light.
+struct Lights<'s> {
+    scene: &'s TestScene,
+    choice: DiscreteDistribution,
+}
+
+impl<'s> Lights<'s> {
+    fn new(scene: &'s TestScene, point_light_probability: f64) -> Self {
+        let area = (1.0 - point_light_probability) / 2.0;
+        Lights { scene, choice: DiscreteDistribution::new(&[area, area, point_light_probability]).unwrap() }
+    }
+}
+
+impl Strategy<TestVertex> for Lights<'_> {
+    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let scene = self.scene;
+        let branch = move |i: usize| match i {
+            0 | 1 => Either::Left(OnSurface::new(scene.light_triangle(i), move |p| Some(scene.vertex_on(scene.light, p)))),
+            _ => Either::Right(DiracPoint::new(TestVertex::point(scene.point_light), 1.0)),
+        };
+        let which = move |v: &Step<TestVertex>| match v {
+            Step::Vertex(v) if v.shape as usize == scene.light => (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some()),
+            Step::Vertex(v) if v.geometry == Geometry::Point => Some(2),
+            _ => None,
+        };
+        Select::new(&self.choice, 2, branch, which)
+    }
+    fn memory(&self) -> usize {
+        0
+    }
+}
+
+fn is_on_light(scene: &TestScene, v: &TestVertex) -> bool {
+    v.shape as usize == scene.light
+}
+
+#[test]
+fn dirac_lobe_and_point_light_partition_of_unity() {
+    let scene = TestScene::open_box();
+    let (camera, look) = (CameraPoint::default(), Look(&scene));
+    let bsdf = DiffuseAndMirror { scene: &scene, lobes: DiscreteDistribution::new(&[0.6, 0.4]).unwrap() };
+    let lights = Lights::new(&scene, 0.3);
+    let techniques = [Technique::new().forward(&camera).forward(&look).forward(&bsdf), Technique::new().forward(&camera).forward(&look).forward(&lights)];
+    for heuristic in [Heuristic::Balance, Heuristic::POWER] {
+        let report = check_mis(&techniques, heuristic, 2000, &mut Pcg32::new(11, 0)).unwrap();
+        println!("{heuristic:?}: {report:?}");
+        assert!(report.paths > 3000 && report.max_partition_error < 1e-9);
+    }
+
+    // The cases Dirac orders decide, found by sampling.
+    let mut rng = Pcg32::new(5, 1);
+    let (mut point_light, mut mirror_to_light, mut diffuse_to_light) = (0, 0, 0);
+    for _ in 0..20_000 {
+        let mut cam = RandomSequence::new();
+        cam.append(&camera).append(&look);
+        if cam.sample(&mut rng) != aether_core::StepKind::Vertex {
+            continue;
+        }
+        let (mut via_bsdf, mut via_light) = (cam.clone(), cam.clone());
+        via_bsdf.append(&bsdf);
+        via_light.append(&lights);
+        if via_light.sample(&mut rng) == aether_core::StepKind::Vertex && via_light.vertices()[2].geometry == Geometry::Point {
+            // A point light: BSDF sampling cannot hit it.
+            let as_bsdf = techniques[0].assign(&via_light).unwrap();
+            let w = combine(&[as_bsdf, via_light.clone()], Heuristic::POWER);
+            assert_eq!(w.as_slice(), &[0.0, 1.0]);
+            point_light += 1;
+        }
+        if via_bsdf.sample(&mut rng) == aether_core::StepKind::Vertex && is_on_light(&scene, &via_bsdf.vertices()[2]) {
+            let as_light = techniques[1].assign(&via_bsdf).unwrap();
+            let w = combine(&[via_bsdf.clone(), as_light], Heuristic::POWER);
+            let p = via_bsdf.pdf();
+            if p.dirac_order() == 2 {
+                // Pinhole and mirror: the light technique has one Dirac fewer.
+                assert_eq!(w.as_slice(), &[1.0, 0.0]);
+                mirror_to_light += 1;
+            } else {
+                assert!(w[0] > 0.0 && w[0] < 1.0 && (w[0] + w[1] - 1.0).abs() < 1e-12, "{w:?}");
+                diffuse_to_light += 1;
+            }
+        }
+    }
+    println!("point light {point_light}, mirror to light {mirror_to_light}, diffuse to light {diffuse_to_light}");
+    assert!(point_light > 100 && mirror_to_light > 10 && diffuse_to_light > 10);
+}
+
+#[test]
+fn dirac_masses_cancel_exactly() {
+    let scene = TestScene::open_box();
+    let (camera, look) = (CameraPoint::default(), Look(&scene));
+    let (a, b) = (Lights::new(&scene, 0.3), Lights::new(&scene, 0.1));
+    let mut rng = Pcg32::new(9, 0);
+    let mut checked = 0;
+    while checked < 50 {
+        let mut path = RandomSequence::new();
+        path.append(&camera).append(&look).append(&a);
+        if path.sample(&mut rng) != aether_core::StepKind::Vertex || path.vertices()[2].geometry != Geometry::Point {
+            continue;
+        }
+        let under_b = Technique::new().forward(&camera).forward(&look).forward(&b).assign(&path).unwrap();
+        let wb = combine(&[path.clone(), under_b.clone()], Heuristic::Balance);
+        assert!((wb[0] - 0.75).abs() < 1e-12 && (wb[1] - 0.25).abs() < 1e-12, "{wb:?}");
+        let wp = combine(&[path, under_b], Heuristic::POWER);
+        assert!((wp[0] - 0.9).abs() < 1e-12, "{wp:?}");
+        checked += 1;
+    }
+}
+
+#[test]
+fn bdpt_candidates_match_direct_evaluation() {
+    let scene = TestScene::open_box();
+    let (camera, look, bounce, light) = (CameraPoint::default(), Look(&scene), Bounce::new(&scene), LightSample::new(&scene));
+    // All (s, t) splits of a four-vertex path, ordered by s.
+    let techniques = [
+        Technique::new().reversed(&bounce).reversed(&bounce).reversed(&bounce).reversed(&light),
+        Technique::new().forward(&camera).reversed(&bounce).reversed(&bounce).reversed(&light),
+        Technique::new().forward(&camera).forward(&look).reversed(&bounce).reversed(&light),
+        Technique::new().forward(&camera).forward(&look).forward(&bounce).reversed(&light),
+        Technique::new().forward(&camera).forward(&look).forward(&bounce).forward(&bounce),
+    ];
+    for heuristic in [Heuristic::Balance, Heuristic::POWER, Heuristic::Power(3.0)] {
+        let report = check_mis(&techniques, heuristic, 400, &mut Pcg32::new(21, 3)).unwrap();
+        println!("{heuristic:?}: {report:?}");
+        assert!(report.paths > 500, "{report:?}");
+        assert!(report.mean_weights.iter().all(|&w| w > 0.0));
+    }
+    // On paths through the pinhole, s = 0 (a light path hitting a point) has weight zero.
+    let mut rng = Pcg32::new(4, 4);
+    let mut checked = 0;
+    while checked < 200 {
+        let Some(path) = techniques[3].sample(&mut rng) else { continue };
+        let candidates: Vec<_> = techniques.iter().map(|t| t.assign(&path).unwrap()).collect();
+        let w = combine(&candidates, Heuristic::POWER);
+        assert_eq!(w[0], 0.0);
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        checked += 1;
+    }
+}
+
+/// ∫ over the light of cos θₓ cos θ_y / (π r²) dA(y) from a floor point,
+/// estimated by BSDF sampling and light sampling combined with MIS, against
+/// a long light-sampling reference. Unbiased weights give the same mean.
+#[test]
+fn mis_estimator_is_unbiased() {
+    let scene = TestScene::open_box();
+    let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
+    let x = scene.vertex_on(0, Vec3::new(0.3, -0.4, 0.0));
+    let f = |y: &TestVertex| {
+        if y.shape as usize != scene.light {
+            return 0.0;
+        }
+        let d = y.position - x.position;
+        let r2 = f64::from(d.length_squared());
+        let w = d.normalize();
+        f64::from(w.z.max(0.0)) * f64::from((-w).dot(y.normal()).max(0.0)) / (std::f64::consts::PI * r2)
+    };
+    let base = RandomSequence::given([x]);
+    let mut rng = Pcg32::new(77, 0);
+    let n = 200_000;
+    let (mut sum, mut sum2) = (0.0, 0.0);
+    for _ in 0..n {
+        let (mut a, mut b) = (base.clone(), base.clone());
+        a.append(&bounce);
+        b.append(&light);
+        a.sample(&mut rng);
+        b.sample(&mut rng);
+        // A bounce that escapes contributes nothing, but still weighs the light sample.
+        let w = combine(&[a.clone(), b.clone()], Heuristic::POWER);
+        let mut estimate = 0.0;
+        for (path, w) in [(&a, w[0]), (&b, w[1])] {
+            if path.is_complete() {
+                estimate += w * f(&path.vertices()[1]) / path.pdf().value();
+            }
+        }
+        sum += estimate;
+        sum2 += estimate * estimate;
+    }
+    let mean = sum / f64::from(n);
+    let sigma = ((sum2 / f64::from(n) - mean * mean) / f64::from(n)).sqrt();
+    // Reference: light sampling alone, many more samples.
+    let (mut reference, m) = (0.0, 2_000_000);
+    let d = light.distribution(Prefix::forward(std::slice::from_ref(&x)));
+    for _ in 0..m {
+        use aether_core::UniformSource;
+        let s = d.sample(&[rng.next_f32(), rng.next_f32()]).unwrap();
+        if let Step::Vertex(y) = s.value {
+            reference += f(&y) / s.density.value();
+        }
+    }
+    reference /= f64::from(m);
+    println!("MIS {mean} ± {sigma}, reference {reference}");
+    assert!((mean - reference).abs() < 4.0 * sigma, "MIS {mean} ± {sigma} vs {reference}");
+}
