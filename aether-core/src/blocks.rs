@@ -29,7 +29,9 @@ impl<D: Distribution<Value = Vec3>> Distribution for InFrame<D> {
         self.inner.dims()
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
-        self.inner.sample(u).map(|s| s.map(|w| self.frame.to_world(w)))
+        self.inner
+            .sample(u)
+            .map(|s| s.map(|w| self.frame.to_world(w)))
     }
     fn density(&self, w: &Vec3) -> Density {
         self.inner.density(&self.frame.to_local(*w))

@@ -34,7 +34,9 @@ pub struct Select<C, F, W> {
 
 impl<C, F, W> std::fmt::Debug for Select<C, F, W> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Select").field("dims", &self.dims).finish_non_exhaustive()
+        f.debug_struct("Select")
+            .field("dims", &self.dims)
+            .finish_non_exhaustive()
     }
 }
 
@@ -49,7 +51,12 @@ where
     /// `branch(i)`, which reads at most `dims` uniforms. `which` names the
     /// branch a value came from (`None`: no branch could have produced it).
     pub fn new(choice: C, dims: usize, branch: F, which: W) -> Self {
-        Select { choice, dims: dims.max(1), branch, which }
+        Select {
+            choice,
+            dims: dims.max(1),
+            branch,
+            which,
+        }
     }
 }
 
@@ -68,9 +75,15 @@ where
         let choice = self.choice.borrow();
         let (i, rest) = choice.select(u[0]);
         let branch = (self.branch)(i);
-        debug_assert!(branch.dims() <= self.dims, "branch {i} reads more uniforms than declared");
+        debug_assert!(
+            branch.dims() <= self.dims,
+            "branch {i} reads more uniforms than declared"
+        );
         let s = branch.sample(&with_first(u, rest))?;
-        Some(Sample::new(s.value, Density::discrete(choice.probability(i)) * s.density))
+        Some(Sample::new(
+            s.value,
+            Density::discrete(choice.probability(i)) * s.density,
+        ))
     }
     fn density(&self, v: &D::Value) -> Density {
         match (self.which)(v) {
@@ -114,7 +127,9 @@ pub struct Mixture<C, F> {
 
 impl<C, F> std::fmt::Debug for Mixture<C, F> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Mixture").field("dims", &self.dims).finish_non_exhaustive()
+        f.debug_struct("Mixture")
+            .field("dims", &self.dims)
+            .finish_non_exhaustive()
     }
 }
 
@@ -127,7 +142,11 @@ where
     /// Chooses branch `i` with `choice`'s probability, then samples
     /// `branch(i)`, which reads at most `dims` uniforms.
     pub fn new(choice: C, dims: usize, branch: F) -> Self {
-        Mixture { choice, dims: dims.max(1), branch }
+        Mixture {
+            choice,
+            dims: dims.max(1),
+            branch,
+        }
     }
 }
 
@@ -155,18 +174,23 @@ where
         (0..choice.len())
             .filter(|&i| choice.probability(i) > 0.0)
             .map(|i| Density::discrete(choice.probability(i)) * (self.branch)(i).density(v))
-            .fold(Density::zero(Measure::Discrete), Density::add)
+            .fold(Density::zero(Measure::Discrete), |a, b| a + b)
     }
     fn invert(&self, v: &D::Value) -> Option<Uniforms> {
         let choice = self.choice.borrow();
-        (0..choice.len()).filter(|&i| choice.probability(i) > 0.0).find_map(|i| {
-            let branch = (self.branch)(i);
-            if branch.density(v).is_zero() {
-                return None;
-            }
-            let u = branch.invert(v)?;
-            Some(with_first(&u, choice.unselect(i, u.first().copied().unwrap_or(0.5))))
-        })
+        (0..choice.len())
+            .filter(|&i| choice.probability(i) > 0.0)
+            .find_map(|i| {
+                let branch = (self.branch)(i);
+                if branch.density(v).is_zero() {
+                    return None;
+                }
+                let u = branch.invert(v)?;
+                Some(with_first(
+                    &u,
+                    choice.unselect(i, u.first().copied().unwrap_or(0.5)),
+                ))
+            })
     }
     fn has_overlapping_branches(&self) -> bool {
         true
@@ -187,7 +211,10 @@ pub struct RussianRoulette<D> {
 impl<D> RussianRoulette<D> {
     /// Continues with probability `q` ∈ [0, 1].
     pub fn new(q: f64, inner: D) -> Self {
-        RussianRoulette { q: q.clamp(0.0, 1.0), inner }
+        RussianRoulette {
+            q: q.clamp(0.0, 1.0),
+            inner,
+        }
     }
 }
 
@@ -198,7 +225,10 @@ impl<T, D: Distribution<Value = Step<T>>> Distribution for RussianRoulette<D> {
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Step<T>>> {
         if f64::from(u[0]) >= self.q {
-            return Some(Sample::new(Step::Terminated, Density::discrete(1.0 - self.q)));
+            return Some(Sample::new(
+                Step::Terminated,
+                Density::discrete(1.0 - self.q),
+            ));
         }
         let rest = crate::distribution::below_one((f64::from(u[0]) / self.q) as f32);
         let s = self.inner.sample(&with_first(u, rest))?;
@@ -211,19 +241,24 @@ impl<T, D: Distribution<Value = Step<T>>> Distribution for RussianRoulette<D> {
     fn density(&self, v: &Step<T>) -> Density {
         let continued = self.inner.density(v).scale(self.q);
         match v {
-            Step::Terminated => Density::discrete(1.0 - self.q).add(continued),
+            Step::Terminated => Density::discrete(1.0 - self.q) + continued,
             _ => continued,
         }
     }
     fn invert(&self, v: &Step<T>) -> Option<Uniforms> {
         if matches!(v, Step::Terminated) && self.q < 1.0 {
-            return Some(with_first(&[], crate::distribution::below_one((self.q + (1.0 - self.q) / 2.0) as f32)));
+            return Some(with_first(
+                &[],
+                crate::distribution::below_one((self.q + (1.0 - self.q) / 2.0) as f32),
+            ));
         }
         if self.q == 0.0 {
             return None;
         }
         let u = self.inner.invert(v)?;
-        let first = crate::distribution::below_one((f64::from(u.first().copied().unwrap_or(0.5)) * self.q) as f32);
+        let first = crate::distribution::below_one(
+            (f64::from(u.first().copied().unwrap_or(0.5)) * self.q) as f32,
+        );
         Some(with_first(&u, first))
     }
     fn has_overlapping_branches(&self) -> bool {

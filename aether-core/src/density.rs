@@ -72,8 +72,16 @@ impl Density {
     /// A continuous density in `measure`.
     #[must_use]
     pub fn new(value: f64, measure: Measure) -> Self {
-        let value = if value.is_finite() && value > 0.0 { value } else { 0.0 };
-        Density { value, measure, dirac: 0 }
+        let value = if value.is_finite() && value > 0.0 {
+            value
+        } else {
+            0.0
+        };
+        Density {
+            value,
+            measure,
+            dirac: 0,
+        }
     }
 
     /// A probability mass of a discrete event.
@@ -86,13 +94,20 @@ impl Density {
     /// continuous measure would be `measure`.
     #[must_use]
     pub fn dirac(mass: f64, measure: Measure) -> Self {
-        Density { dirac: 1, ..Density::new(mass, measure) }
+        Density {
+            dirac: 1,
+            ..Density::new(mass, measure)
+        }
     }
 
     /// The zero density of a value that cannot be produced.
     #[must_use]
     pub fn zero(measure: Measure) -> Self {
-        Density { value: 0.0, measure, dirac: 0 }
+        Density {
+            value: 0.0,
+            measure,
+            dirac: 0,
+        }
     }
 
     /// The numeric value (the mass, for Dirac components).
@@ -128,7 +143,10 @@ impl Density {
     /// Multiplies by a Jacobian factor, keeping measure and Dirac order.
     #[must_use]
     pub fn scale(self, factor: f64) -> Self {
-        Density { dirac: self.dirac, ..Density::new(self.value * factor, self.measure) }
+        Density {
+            dirac: self.dirac,
+            ..Density::new(self.value * factor, self.measure)
+        }
     }
 
     /// The same density re-expressed in another measure after a change of
@@ -136,14 +154,19 @@ impl Density {
     /// |cos θ| / r² from solid angle to area).
     #[must_use]
     pub fn convert(self, factor: f64, measure: Measure) -> Self {
-        Density { measure, ..self.scale(factor) }
+        Density {
+            measure,
+            ..self.scale(factor)
+        }
     }
+}
 
-    /// The sum of two densities of the same value (a mixture). The term of
-    /// higher Dirac order dominates: a continuous density added to a Dirac
-    /// one is negligible.
-    #[must_use]
-    pub fn add(self, other: Density) -> Density {
+/// The sum of two densities of the same value (a mixture). The term of
+/// higher Dirac order dominates: a continuous density added to a Dirac one
+/// is negligible.
+impl std::ops::Add for Density {
+    type Output = Density;
+    fn add(self, other: Density) -> Density {
         if other.is_zero() {
             return self;
         }
@@ -153,7 +176,10 @@ impl Density {
         match self.dirac.cmp(&other.dirac) {
             std::cmp::Ordering::Greater => self,
             std::cmp::Ordering::Less => other,
-            std::cmp::Ordering::Equal => Density { value: self.value + other.value, ..self },
+            std::cmp::Ordering::Equal => Density {
+                value: self.value + other.value,
+                ..self
+            },
         }
     }
 }
@@ -198,15 +224,26 @@ impl Default for PathDensity {
 
 impl PathDensity {
     /// The empty product.
-    pub const ONE: PathDensity = PathDensity { value: 1.0, zeros: 0, dirac: 0 };
+    pub const ONE: PathDensity = PathDensity {
+        value: 1.0,
+        zeros: 0,
+        dirac: 0,
+    };
 
     /// Multiplies a factor in.
     #[must_use]
     pub fn times(self, d: Density) -> PathDensity {
         if d.is_zero() {
-            PathDensity { zeros: self.zeros + 1, ..self }
+            PathDensity {
+                zeros: self.zeros + 1,
+                ..self
+            }
         } else {
-            PathDensity { value: self.value * d.value, dirac: self.dirac + d.dirac, zeros: self.zeros }
+            PathDensity {
+                value: self.value * d.value,
+                dirac: self.dirac + d.dirac,
+                zeros: self.zeros,
+            }
         }
     }
 
@@ -214,10 +251,20 @@ impl PathDensity {
     #[must_use]
     pub fn divided_by(self, d: Density) -> PathDensity {
         if d.is_zero() {
-            debug_assert!(self.zeros > 0, "dividing out a zero factor that was never multiplied in");
-            PathDensity { zeros: self.zeros.saturating_sub(1), ..self }
+            debug_assert!(
+                self.zeros > 0,
+                "dividing out a zero factor that was never multiplied in"
+            );
+            PathDensity {
+                zeros: self.zeros.saturating_sub(1),
+                ..self
+            }
         } else {
-            PathDensity { value: self.value / d.value, dirac: self.dirac - d.dirac, zeros: self.zeros }
+            PathDensity {
+                value: self.value / d.value,
+                dirac: self.dirac - d.dirac,
+                zeros: self.zeros,
+            }
         }
     }
 
@@ -293,7 +340,7 @@ mod tests {
 
     #[test]
     fn mixture_of_dirac_and_continuous() {
-        let d = Density::dirac(0.3, Measure::SolidAngle).add(Density::new(5.0, Measure::SolidAngle));
+        let d = Density::dirac(0.3, Measure::SolidAngle) + Density::new(5.0, Measure::SolidAngle);
         assert!(d.is_dirac());
         assert_eq!(d.value(), 0.3);
     }

@@ -29,7 +29,10 @@ impl<T> Sample<T> {
 
     /// Maps the value, keeping the density (for measure-preserving relabelings).
     pub fn map<U>(self, f: impl FnOnce(T) -> U) -> Sample<U> {
-        Sample { value: f(self.value), density: self.density }
+        Sample {
+            value: f(self.value),
+            density: self.density,
+        }
     }
 }
 

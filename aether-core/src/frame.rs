@@ -19,12 +19,19 @@ pub struct Frame {
 
 impl Frame {
     /// The frame of the world axes.
-    pub const WORLD: Frame = Frame { s: Vec3::X, t: Vec3::Y, n: Vec3::Z };
+    pub const WORLD: Frame = Frame {
+        s: Vec3::X,
+        t: Vec3::Y,
+        n: Vec3::Z,
+    };
 
     /// A frame around a unit normal (Duff et al. 2017, branchless).
     #[must_use]
     pub fn from_normal(n: Vec3) -> Frame {
-        debug_assert!((n.length_squared() - 1.0).abs() < 1e-3, "normal {n} is not unit length");
+        debug_assert!(
+            (n.length_squared() - 1.0).abs() < 1e-3,
+            "normal {n} is not unit length"
+        );
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let b = n.x * n.y * a;
@@ -72,7 +79,12 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::X] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.3, -0.5, 0.81).normalize(),
+            Vec3::X,
+        ] {
             let f = Frame::from_normal(n);
             assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(f.n).abs() < 1e-6);
             assert!((f.s.cross(f.t) - f.n).length() < 1e-5);

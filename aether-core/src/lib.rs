@@ -53,7 +53,9 @@ pub use frame::{Frame, reflect, refract};
 pub use mis::{Heuristic, Weights, combine};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
-pub use strategy::{DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef};
+pub use strategy::{
+    DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
+};
 pub use surface::{DiracPoint, Intersect, OnSurface};
 pub use vertex::{Geometry, RayCaster, Vertex};
 

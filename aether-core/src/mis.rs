@@ -44,11 +44,15 @@ impl Heuristic {
             }
             sum += match self {
                 Heuristic::Balance => r,
-                Heuristic::Power(beta) if beta == 2.0 => r * r,
+                Heuristic::Power(2.0) => r * r,
                 Heuristic::Power(beta) => r.powf(beta),
             };
         }
-        if sum.is_finite() && sum > 0.0 { 1.0 / sum } else { 0.0 }
+        if sum.is_finite() && sum > 0.0 {
+            1.0 / sum
+        } else {
+            0.0
+        }
     }
 }
 
@@ -115,7 +119,10 @@ impl FactorCache {
 
     fn grow(&mut self) {
         let size = 2 * self.entries.len().max(128);
-        let old = std::mem::replace(&mut self.entries, vec![(0, FactorKey::EMPTY, Density::zero(Measure::Area)); size]);
+        let old = std::mem::replace(
+            &mut self.entries,
+            vec![(0, FactorKey::EMPTY, Density::zero(Measure::Area)); size],
+        );
         self.len = 0;
         for (g, k, d) in old {
             if g == self.generation {
@@ -165,19 +172,20 @@ thread_local! {
 ///
 /// ```
 /// use aether_core::{Heuristic, Pcg32, RandomSequence, combine};
-/// use aether_core::testing::{Bounce, CameraPoint, LightSample, TestScene};
+/// use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene};
 ///
 /// let scene = TestScene::open_box();
-/// let (camera, bounce, light) = (CameraPoint::default(), Bounce::new(&scene), LightSample::new(&scene));
+/// let (camera, look, bounce, light) = (CameraPoint::default(), LookDown::new(&scene), Bounce::new(&scene), LightSample::new(&scene));
 /// let mut rng = Pcg32::new(3, 0);
-/// let mut bsdf_path = RandomSequence::new();
-/// bsdf_path.append(&camera).append(&bounce).append(&bounce);
-/// bsdf_path.sample(&mut rng);
-/// let mut light_path = bsdf_path.slice(0..2);
-/// light_path.append(&light);
-/// light_path.sample(&mut rng);
-/// let w = combine(&[bsdf_path, light_path], Heuristic::POWER);
-/// assert!(w.iter().all(|w| (0.0..=1.0).contains(w)));
+/// let mut eye = RandomSequence::new();
+/// eye.append(&camera).append(&look);
+/// eye.sample(&mut rng);
+/// // The next vertex by BSDF sampling, or by sampling the light.
+/// let (mut by_bsdf, mut by_light) = (eye.clone(), eye.clone());
+/// by_bsdf.append(&bounce).sample(&mut rng);
+/// by_light.append(&light).sample(&mut rng);
+/// let w = combine(&[by_bsdf, by_light], Heuristic::POWER);
+/// assert!(w[1] > 0.0 && w.iter().all(|w| (0.0..=1.0).contains(w)));
 /// ```
 pub fn combine<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heuristic) -> Weights {
     SCRATCH.with(|s| match s.try_borrow_mut() {
@@ -186,25 +194,41 @@ pub fn combine<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heuri
     })
 }
 
-fn combine_with<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heuristic, scratch: &mut Scratch) -> Weights {
+fn combine_with<V: Vertex>(
+    candidates: &[RandomSequence<'_, V>],
+    heuristic: Heuristic,
+    scratch: &mut Scratch,
+) -> Weights {
     let m = candidates.len();
-    let Scratch { cache, densities, diffs, spans } = scratch;
+    let Scratch {
+        cache,
+        densities,
+        diffs,
+        spans,
+    } = scratch;
     cache.begin();
     diffs.clear();
     spans.clear();
     // Each candidate's steps, then the differences between neighbours.
-    let steps: SmallVec<[SmallVec<[Span<'_, V>; 16]>; 16]> = candidates.iter().map(|c| c.spans().collect()).collect();
+    let steps: SmallVec<[SmallVec<[Span<'_, V>; 16]>; 16]> =
+        candidates.iter().map(|c| c.spans().collect()).collect();
     for j in 1..m {
         let a = spans.len() as u32;
         for (index, s) in steps[j].iter().enumerate() {
             if !steps[j - 1].contains(s) {
-                spans.push(SpanRecord { candidate: j as u32, index: index as u32 });
+                spans.push(SpanRecord {
+                    candidate: j as u32,
+                    index: index as u32,
+                });
             }
         }
         let b = spans.len() as u32;
         for (index, s) in steps[j - 1].iter().enumerate() {
             if !steps[j].contains(s) {
-                spans.push(SpanRecord { candidate: (j - 1) as u32, index: index as u32 });
+                spans.push(SpanRecord {
+                    candidate: (j - 1) as u32,
+                    index: index as u32,
+                });
             }
         }
         diffs.push((a, b, b, spans.len() as u32));
@@ -234,7 +258,9 @@ fn combine_with<V: Vertex>(candidates: &[RandomSequence<'_, V>], heuristic: Heur
                     let p = removed.fold(p, |p, s| p.divided_by(x.factor(&s, Some(cache))));
                     added.fold(p, |p, s| p.times(x.factor(&s, Some(cache))))
                 }
-                _ => steps[j].iter().fold(PathDensity::ONE, |p, s| p.times(x.factor(s, Some(cache)))),
+                _ => steps[j]
+                    .iter()
+                    .fold(PathDensity::ONE, |p, s| p.times(x.factor(s, Some(cache)))),
             };
             running = Some(p);
             densities.push(p);
@@ -263,7 +289,10 @@ mod tests {
         let mut c = FactorCache::default();
         c.begin();
         for i in 0..1000u64 {
-            c.insert(FactorKey::test(i), Density::new(i as f64 + 1.0, Measure::Area));
+            c.insert(
+                FactorKey::test(i),
+                Density::new(i as f64 + 1.0, Measure::Area),
+            );
         }
         assert_eq!(c.get(&FactorKey::test(999)).unwrap().value(), 1000.0);
         c.begin();

@@ -29,7 +29,10 @@ impl Pcg32 {
     /// The generator for `seed` on stream `stream`.
     #[must_use]
     pub fn new(seed: u64, stream: u64) -> Self {
-        let mut rng = Pcg32 { state: 0, inc: (stream << 1) | 1 };
+        let mut rng = Pcg32 {
+            state: 0,
+            inc: (stream << 1) | 1,
+        };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(seed);
         rng.next_u32();
@@ -58,10 +61,12 @@ mod tests {
 
     #[test]
     fn streams_differ_and_repeat() {
-        let a: Vec<u32> = (0..4).map({
-            let mut r = Pcg32::new(7, 1);
-            move |_| r.next_u32()
-        }).collect();
+        let a: Vec<u32> = (0..4)
+            .map({
+                let mut r = Pcg32::new(7, 1);
+                move |_| r.next_u32()
+            })
+            .collect();
         let mut b = Pcg32::new(7, 1);
         let mut c = Pcg32::new(7, 2);
         assert_eq!(a, (0..4).map(|_| b.next_u32()).collect::<Vec<_>>());

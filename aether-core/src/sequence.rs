@@ -49,16 +49,33 @@ pub(crate) struct FactorKey {
 }
 
 impl FactorKey {
-    pub(crate) const EMPTY: FactorKey = FactorKey { strategy: 0, kind: 0, prefix_len: 0, targets: [0; 2], cond: [0; 2] };
+    pub(crate) const EMPTY: FactorKey = FactorKey {
+        strategy: 0,
+        kind: 0,
+        prefix_len: 0,
+        targets: [0; 2],
+        cond: [0; 2],
+    };
 
     #[cfg(test)]
     pub(crate) fn test(i: u64) -> FactorKey {
-        FactorKey { targets: [i, 0], ..Self::EMPTY }
+        FactorKey {
+            targets: [i, 0],
+            ..Self::EMPTY
+        }
     }
 
     pub(crate) fn hash64(&self) -> u64 {
         let mut h = 0xcbf2_9ce4_8422_2325u64;
-        for w in [self.strategy as u64, self.kind as u64, u64::from(self.prefix_len), self.targets[0], self.targets[1], self.cond[0], self.cond[1]] {
+        for w in [
+            self.strategy as u64,
+            self.kind as u64,
+            u64::from(self.prefix_len),
+            self.targets[0],
+            self.targets[1],
+            self.cond[0],
+            self.cond[1],
+        ] {
             h = (h ^ w).wrapping_mul(0x0000_0100_0000_01b3).rotate_left(29);
         }
         h ^ (h >> 31)
@@ -108,7 +125,10 @@ impl<V> PartialEq for Span<'_, V> {
             (None, None) => self.fixed_id == other.fixed_id,
             _ => false,
         };
-        same_strategy && self.start == other.start && self.arity == other.arity && self.reversed == other.reversed
+        same_strategy
+            && self.start == other.start
+            && self.arity == other.arity
+            && self.reversed == other.reversed
     }
 }
 
@@ -128,12 +148,12 @@ impl<V> PartialEq for Span<'_, V> {
 ///
 /// ```
 /// use aether_core::{Pcg32, RandomSequence};
-/// use aether_core::testing::{Bounce, CameraPoint, TestScene};
+/// use aether_core::testing::{Bounce, CameraPoint, LookDown, TestScene};
 ///
 /// let scene = TestScene::open_box();
-/// let (camera, bounce) = (CameraPoint::default(), Bounce::new(&scene));
+/// let (camera, look, bounce) = (CameraPoint::default(), LookDown::new(&scene), Bounce::new(&scene));
 /// let mut path = RandomSequence::new();
-/// path.append(&camera).append(&bounce).append(&bounce);
+/// path.append(&camera).append(&look).append(&bounce);
 /// path.sample(&mut Pcg32::new(1, 0));
 /// assert_eq!(path.len(), 3);
 /// let p = path.pdf();
@@ -183,7 +203,13 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// The empty sequence.
     #[must_use]
     pub fn new() -> Self {
-        RandomSequence { vertices: SmallVec::new(), slots: SmallVec::new(), pending: SmallVec::new(), unsampled: SmallVec::new(), end: None }
+        RandomSequence {
+            vertices: SmallVec::new(),
+            slots: SmallVec::new(),
+            pending: SmallVec::new(),
+            unsampled: SmallVec::new(),
+            end: None,
+        }
     }
 
     /// A sequence of given vertices that no strategy sampled. Under
@@ -193,7 +219,14 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let mut s = Self::new();
         for v in vertices {
             s.vertices.push(v);
-            s.slots.push(Slot { strategy: None, reversed: false, arity: 1, part: 0, id: fresh_id(), recorded: None });
+            s.slots.push(Slot {
+                strategy: None,
+                reversed: false,
+                arity: 1,
+                part: 0,
+                id: fresh_id(),
+                recorded: None,
+            });
         }
         s
     }
@@ -238,12 +271,20 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
-    pub fn append_sample<R: UniformSource>(&mut self, strategy: &'s dyn DynStrategy<V>, rng: &mut R) -> bool {
+    pub fn append_sample<R: UniformSource>(
+        &mut self,
+        strategy: &'s dyn DynStrategy<V>,
+        rng: &mut R,
+    ) -> bool {
         self.append(strategy);
         self.sample(rng) == StepKind::Vertex
     }
 
-    fn sample_step<R: UniformSource>(&mut self, strategy: StrategyRef<'s, V>, rng: &mut R) -> StepKind {
+    fn sample_step<R: UniformSource>(
+        &mut self,
+        strategy: StrategyRef<'s, V>,
+        rng: &mut R,
+    ) -> StepKind {
         let mut out = SmallVec::<[V; 2]>::new();
         let (kind, density) = strategy.sample_step(Prefix::forward(&self.vertices), rng, &mut out);
         if kind != StepKind::Vertex {
@@ -255,9 +296,22 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         for (part, v) in out.into_iter().enumerate() {
             self.vertices.push(v);
             let id = fresh_id();
-            self.slots.push(Slot { strategy: Some(strategy), reversed: false, arity: arity as u8, part: part as u8, id, recorded: None });
+            self.slots.push(Slot {
+                strategy: Some(strategy),
+                reversed: false,
+                arity: arity as u8,
+                part: part as u8,
+                id,
+                recorded: None,
+            });
         }
-        let span = Span { start, arity, strategy: Some(strategy), reversed: false, fixed_id: 0 };
+        let span = Span {
+            start,
+            arity,
+            strategy: Some(strategy),
+            reversed: false,
+            fixed_id: 0,
+        };
         if let Some(key) = self.key(&span, strategy) {
             self.slots[start].recorded = Some((key, density));
         }
@@ -316,10 +370,14 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// The vertices in `range` with their strategies. A multi-vertex step
     /// that the range cuts becomes given vertices.
+    ///
+    /// # Panics
+    /// If `range` is out of bounds, like slicing.
     #[must_use]
     pub fn slice(&self, range: Range<usize>) -> Self {
         let mut s = Self::new();
-        s.vertices.extend(self.vertices[range.clone()].iter().cloned());
+        s.vertices
+            .extend(self.vertices[range.clone()].iter().cloned());
         s.slots.extend_from_slice(&self.slots[range.clone()]);
         let mut k = 0;
         while k < s.slots.len() {
@@ -328,7 +386,13 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             let cut = arity > 1 && (k + arity > s.slots.len() || self.span_start(origin) != origin);
             if cut {
                 let slot = &mut s.slots[k];
-                *slot = Slot { strategy: None, arity: 1, part: 0, recorded: None, ..*slot };
+                *slot = Slot {
+                    strategy: None,
+                    arity: 1,
+                    part: 0,
+                    recorded: None,
+                    ..*slot
+                };
                 k += 1;
             } else {
                 k += arity;
@@ -353,9 +417,11 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// This sequence followed by `other`.
     #[must_use]
     pub fn concat(&self, other: &Self) -> Self {
-        let mut s = self.slice(0..self.len());
-        s.vertices.extend(other.vertices.iter().cloned());
-        s.slots.extend_from_slice(&other.slots);
+        let mut s = Self::new();
+        s.vertices
+            .extend(self.vertices.iter().chain(&other.vertices).cloned());
+        s.slots
+            .extend(self.slots.iter().chain(&other.slots).copied());
         s
     }
 
@@ -365,7 +431,10 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     pub fn reversed(&self) -> Self {
         let mut s = Self::new();
         s.vertices.extend(self.vertices.iter().rev().cloned());
-        s.slots.extend(self.slots.iter().rev().map(|slot| Slot { reversed: !slot.reversed, ..*slot }));
+        s.slots.extend(self.slots.iter().rev().map(|slot| Slot {
+            reversed: !slot.reversed,
+            ..*slot
+        }));
         s
     }
 
@@ -379,14 +448,24 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         if steps.iter().map(|(s, _)| s.arity()).sum::<usize>() != self.len() {
             return None;
         }
-        let mut s = Self { vertices: self.vertices.clone(), slots: self.slots.clone(), ..Self::new() };
+        let mut s = Self {
+            vertices: self.vertices.clone(),
+            slots: self.slots.clone(),
+            ..Self::new()
+        };
         let mut k = 0;
         for &(strategy, reversed) in steps {
             let arity = strategy.arity();
             for p in 0..arity {
                 let part = if reversed { arity - 1 - p } else { p };
                 let slot = &mut s.slots[k + p];
-                *slot = Slot { strategy: Some(strategy), reversed, arity: arity as u8, part: part as u8, ..*slot };
+                *slot = Slot {
+                    strategy: Some(strategy),
+                    reversed,
+                    arity: arity as u8,
+                    part: part as u8,
+                    ..*slot
+                };
             }
             k += arity;
         }
@@ -398,13 +477,25 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let mut k = 0;
         let sampled = std::iter::from_fn(move || {
             let slot = self.slots.get(k)?;
-            let span = Span { start: k, arity: usize::from(slot.arity), strategy: slot.strategy, reversed: slot.reversed, fixed_id: slot.id };
+            let span = Span {
+                start: k,
+                arity: usize::from(slot.arity),
+                strategy: slot.strategy,
+                reversed: slot.reversed,
+                fixed_id: slot.id,
+            };
             k += span.arity;
             Some(span)
         });
         let mut start = self.len();
         let unsampled = self.unsampled.iter().map(move |s| {
-            let span = Span { start, arity: s.arity(), strategy: Some(*s), reversed: false, fixed_id: 0 };
+            let span = Span {
+                start,
+                arity: s.arity(),
+                strategy: Some(*s),
+                reversed: false,
+                fixed_id: 0,
+            };
             start += span.arity;
             span
         });
@@ -464,7 +555,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         };
         let key = self.key(span, strategy);
         if let Some(key) = key {
-            let first = (span.start..end).find(|&k| self.slots[k].part == 0).unwrap_or(span.start);
+            let first = (span.start..end)
+                .find(|&k| self.slots[k].part == 0)
+                .unwrap_or(span.start);
             if let Some((k, d)) = self.slots[first].recorded {
                 if k == key {
                     return d;
@@ -479,11 +572,18 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             if span.arity == 1 {
                 strategy.density_of(prefix, &self.vertices[span.start..end])
             } else {
-                let targets: SmallVec<[V; 2]> = self.vertices[span.start..end].iter().rev().cloned().collect();
+                let targets: SmallVec<[V; 2]> = self.vertices[span.start..end]
+                    .iter()
+                    .rev()
+                    .cloned()
+                    .collect();
                 strategy.density_of(prefix, &targets)
             }
         } else {
-            strategy.density_of(Prefix::forward(&self.vertices[..span.start]), &self.vertices[span.start..end])
+            strategy.density_of(
+                Prefix::forward(&self.vertices[..span.start]),
+                &self.vertices[span.start..end],
+            )
         };
         if let (Some(key), Some(cache)) = (key, cache) {
             cache.insert(key, d);
@@ -508,6 +608,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         if self.technique_len() != path.len() || !path.is_complete() || !self.pending.is_empty() {
             return PathDensity::ONE.times(Density::zero(Measure::Area));
         }
-        self.spans().fold(PathDensity::ONE, |p, span| p.times(path.factor(&span, None)))
+        self.spans().fold(PathDensity::ONE, |p, span| {
+            p.times(path.factor(&span, None))
+        })
     }
 }

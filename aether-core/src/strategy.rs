@@ -3,7 +3,7 @@
 use smallvec::SmallVec;
 
 use crate::density::{Density, Measure};
-use crate::distribution::{Distribution, Embed, Coords, Step, Uniforms};
+use crate::distribution::{Coords, Distribution, Embed, Step, Uniforms};
 use crate::rng::UniformSource;
 use crate::vertex::{Geometry, Vertex};
 
@@ -30,13 +30,19 @@ impl<'a, V> Prefix<'a, V> {
     /// Vertices in path order: the last one is the most recent.
     #[must_use]
     pub fn forward(vertices: &'a [V]) -> Self {
-        Prefix { vertices, reversed: false }
+        Prefix {
+            vertices,
+            reversed: false,
+        }
     }
 
     /// Vertices in reverse path order: the first one is the most recent.
     #[must_use]
     pub fn reversed(vertices: &'a [V]) -> Self {
-        Prefix { vertices, reversed: true }
+        Prefix {
+            vertices,
+            reversed: true,
+        }
     }
 
     /// Number of conditioning vertices (the depth of the step).
@@ -57,7 +63,11 @@ impl<'a, V> Prefix<'a, V> {
         if k >= self.vertices.len() {
             return None;
         }
-        if self.reversed { self.vertices.get(k) } else { self.vertices.get(self.vertices.len() - 1 - k) }
+        if self.reversed {
+            self.vertices.get(k)
+        } else {
+            self.vertices.get(self.vertices.len() - 1 - k)
+        }
     }
 
     /// The most recent vertex.
@@ -95,7 +105,8 @@ impl<'a, V> Prefix<'a, V> {
 /// ```
 pub trait Strategy<V: Vertex> {
     /// The distribution of the next vertex after `prefix`.
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, V>) -> impl Distribution<Value = Step<V>> + 'a;
+    fn distribution<'a>(&'a self, prefix: Prefix<'a, V>)
+    -> impl Distribution<Value = Step<V>> + 'a;
 
     /// How many of the most recent conditioning vertices the distribution
     /// reads (besides the prefix length). Densities of strategies that read
@@ -111,7 +122,10 @@ pub trait Strategy<V: Vertex> {
 pub trait PairStrategy<V: Vertex> {
     /// The joint distribution of the next two vertices after `prefix`, in
     /// path order.
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, V>) -> impl Distribution<Value = Step<(V, V)>> + 'a;
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, V>,
+    ) -> impl Distribution<Value = Step<(V, V)>> + 'a;
 
     /// As [`Strategy::memory`].
     fn memory(&self) -> usize {
@@ -141,7 +155,12 @@ pub trait DynStrategy<V> {
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
     /// Samples one step, pushing its vertex to `out`.
-    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density);
+    fn sample_step(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+    ) -> (StepKind, Density);
     /// The density of `target`.
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density;
 }
@@ -154,7 +173,12 @@ pub trait DynPairStrategy<V> {
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
     /// Samples one step, pushing its two vertices to `out` in sampling order.
-    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density);
+    fn sample_step(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+    ) -> (StepKind, Density);
     /// The joint density of `first` and `second` (in sampling order).
     fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density;
 }
@@ -163,7 +187,11 @@ fn draw(dims: usize, rng: &mut dyn UniformSource) -> Uniforms {
     (0..dims).map(|_| rng.next_f32()).collect()
 }
 
-fn run<T, D: Distribution<Value = Step<T>>>(d: D, rng: &mut dyn UniformSource, push: impl FnOnce(T)) -> (StepKind, Density) {
+fn run<T, D: Distribution<Value = Step<T>>>(
+    d: D,
+    rng: &mut dyn UniformSource,
+    push: impl FnOnce(T),
+) -> (StepKind, Density) {
     let u = draw(d.dims(), rng);
     match d.sample(&u) {
         Some(s) => match s.value {
@@ -185,11 +213,17 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
     fn name(&self) -> &'static str {
         std::any::type_name::<S>()
     }
-    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+    fn sample_step(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+    ) -> (StepKind, Density) {
         run(self.distribution(prefix), rng, |v| out.push(v))
     }
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
-        self.distribution(prefix).density(&Step::Vertex(target.clone()))
+        self.distribution(prefix)
+            .density(&Step::Vertex(target.clone()))
     }
 }
 
@@ -200,14 +234,20 @@ impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
     fn name(&self) -> &'static str {
         std::any::type_name::<S>()
     }
-    fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+    fn sample_step(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+    ) -> (StepKind, Density) {
         run(self.distribution(prefix), rng, |(a, b)| {
             out.push(a);
             out.push(b);
         })
     }
     fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density {
-        self.distribution(prefix).density(&Step::Vertex((first.clone(), second.clone())))
+        self.distribution(prefix)
+            .density(&Step::Vertex((first.clone(), second.clone())))
     }
 }
 
@@ -285,7 +325,12 @@ impl<V> StrategyRef<'_, V> {
         self.address() == other.address() && std::ptr::eq(self.name(), other.name())
     }
 
-    pub(crate) fn sample_step(&self, prefix: Prefix<'_, V>, rng: &mut dyn UniformSource, out: &mut SmallVec<[V; 2]>) -> (StepKind, Density) {
+    pub(crate) fn sample_step(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+    ) -> (StepKind, Density) {
         match self {
             StrategyRef::One(s) => s.sample_step(prefix, rng, out),
             StrategyRef::Two(s) => s.sample_step(prefix, rng, out),

@@ -19,13 +19,13 @@ use crate::vertex::{Geometry, RayCaster, Vertex};
 /// ```
 /// use aether_core::{Distribution, Frame, InFrame, Intersect, Step};
 /// use aether_core::primitives::CosineHemisphere;
-/// use aether_core::testing::{TestScene, TestVertex};
+/// use aether_core::testing::TestScene;
 /// use glam::Vec3;
 ///
 /// let scene = TestScene::open_box();
-/// let from = TestVertex::on_surface(Vec3::ZERO, Vec3::Z);
+/// let from = scene.vertex_on(0, Vec3::new(0.2, 0.1, 0.0));
 /// let bounce = Intersect::new(&from, InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere), &scene);
-/// let hit = bounce.sample(&[0.3, 0.6]).unwrap();
+/// let hit = bounce.sample(&[0.9, 0.1]).unwrap();
 /// assert!(matches!(hit.value, Step::Vertex(_)));
 /// assert_eq!(bounce.density(&hit.value), hit.density);
 /// ```
@@ -39,7 +39,11 @@ pub struct Intersect<'a, V, D, R> {
 impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a, V, D, R> {
     /// Rays from `from` along world directions drawn from `directions`.
     pub fn new(from: &'a V, directions: D, scene: R) -> Self {
-        Intersect { from, directions, scene }
+        Intersect {
+            from,
+            directions,
+            scene,
+        }
     }
 }
 
@@ -68,7 +72,9 @@ fn measure_of(v: &impl Vertex) -> Measure {
     }
 }
 
-impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution for Intersect<'_, V, D, R> {
+impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution
+    for Intersect<'_, V, D, R>
+{
     type Value = Step<V>;
     fn dims(&self) -> usize {
         self.directions.dims()
@@ -81,11 +87,16 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution for
                 let density = w.density.convert(factor, measure_of(&hit));
                 Some(Sample::new(Step::Vertex(hit), density))
             }
-            None => Some(Sample::new(Step::Missed, Density::zero(Measure::SolidAngle))),
+            None => Some(Sample::new(
+                Step::Missed,
+                Density::zero(Measure::SolidAngle),
+            )),
         }
     }
     fn density(&self, v: &Step<V>) -> Density {
-        let Step::Vertex(v) = v else { return Density::zero(Measure::Area) };
+        let Step::Vertex(v) = v else {
+            return Density::zero(Measure::Area);
+        };
         match direction_to(self.from.position(), v) {
             Some((dir, factor)) => self.directions.density(&dir).convert(factor, measure_of(v)),
             None => Density::zero(Measure::Area),
@@ -124,7 +135,9 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> OnSurfa
     }
 }
 
-impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> Distribution for OnSurface<D, F> {
+impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> Distribution
+    for OnSurface<D, F>
+{
     type Value = Step<V>;
     fn dims(&self) -> usize {
         self.points.dims()
@@ -136,13 +149,17 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> Distrib
     }
     fn density(&self, v: &Step<V>) -> Density {
         match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => self.points.density(&v.position()),
+            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
+                self.points.density(&v.position())
+            }
             _ => Density::zero(Measure::Area),
         }
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
         match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => self.points.invert(&v.position()),
+            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
+                self.points.invert(&v.position())
+            }
             _ => None,
         }
     }
@@ -174,7 +191,10 @@ impl<V: Vertex> Distribution for DiracPoint<V> {
         0
     }
     fn sample(&self, _u: &[f32]) -> Option<Sample<Step<V>>> {
-        Some(Sample::new(Step::Vertex(self.vertex.clone()), Density::dirac(self.mass, Measure::Area)))
+        Some(Sample::new(
+            Step::Vertex(self.vertex.clone()),
+            Density::dirac(self.mass, Measure::Area),
+        ))
     }
     fn density(&self, v: &Step<V>) -> Density {
         match v {

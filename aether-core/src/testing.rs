@@ -11,7 +11,7 @@ use glam::Vec3;
 use crate::distribution::Step;
 use crate::frame::Frame;
 use crate::harness::Parameterization;
-use crate::primitives::{CosineHemisphere, DiscreteDistribution, UniformTriangle};
+use crate::primitives::{CosineHemisphere, DiscreteDistribution, UniformCone, UniformTriangle};
 use crate::strategy::{Prefix, Strategy};
 use crate::surface::{DiracPoint, Intersect, OnSurface};
 use crate::vertex::{Geometry, RayCaster, Vertex};
@@ -32,13 +32,21 @@ impl TestVertex {
     /// A vertex on a surface with unit normal `normal`, on no particular shape.
     #[must_use]
     pub fn on_surface(position: Vec3, normal: Vec3) -> Self {
-        TestVertex { position, geometry: Geometry::Surface { normal }, shape: u32::MAX }
+        TestVertex {
+            position,
+            geometry: Geometry::Surface { normal },
+            shape: u32::MAX,
+        }
     }
 
     /// An isolated point (a pinhole, a point light).
     #[must_use]
     pub fn point(position: Vec3) -> Self {
-        TestVertex { position, geometry: Geometry::Point, shape: u32::MAX }
+        TestVertex {
+            position,
+            geometry: Geometry::Point,
+            shape: u32::MAX,
+        }
     }
 
     /// The geometric normal (+z for points and infinity).
@@ -99,8 +107,12 @@ impl Shape {
                     return None;
                 }
                 let p = o + t * d - corner;
-                let (s, r) = (p.dot(e1) / e1.length_squared(), p.dot(e2) / e2.length_squared());
-                ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| (t as f32, n.normalize().as_vec3()))
+                let (s, r) = (
+                    p.dot(e1) / e1.length_squared(),
+                    p.dot(e2) / e2.length_squared(),
+                );
+                ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r))
+                    .then(|| (t as f32, n.normalize().as_vec3()))
             }
             Shape::Sphere { center, radius } => {
                 let oc = o - center.as_dvec3();
@@ -145,11 +157,19 @@ impl TestScene {
             rect(Vec3::new(-1.0, -1.0, 0.0), Vec3::Y * 2.0, Vec3::Z * 2.0),
             rect(Vec3::new(1.0, -1.0, 0.0), Vec3::Z * 2.0, Vec3::Y * 2.0),
             rect(Vec3::new(-0.25, -0.25, 1.9), Vec3::Y * 0.5, Vec3::X * 0.5),
-            Shape::Sphere { center: Vec3::new(0.4, 0.3, 0.35), radius: 0.35 },
+            Shape::Sphere {
+                center: Vec3::new(0.4, 0.3, 0.35),
+                radius: 0.35,
+            },
         ];
         let light = 5;
         let light_triangles = DiscreteDistribution::new(&[1.0, 1.0]).expect("two equal triangles");
-        TestScene { shapes, light, point_light: Vec3::new(-0.5, 0.5, 1.5), light_triangles }
+        TestScene {
+            shapes,
+            light,
+            point_light: Vec3::new(-0.5, 0.5, 1.5),
+            light_triangles,
+        }
     }
 
     /// The vertex at a point of shape `shape` (used by samplers and charts).
@@ -159,13 +179,19 @@ impl TestScene {
             Shape::Rect { e1, e2, .. } => e1.cross(e2).normalize(),
             Shape::Sphere { center, .. } => (p - center).normalize(),
         };
-        TestVertex { position: p, geometry: Geometry::Surface { normal }, shape: shape as u32 }
+        TestVertex {
+            position: p,
+            geometry: Geometry::Surface { normal },
+            shape: shape as u32,
+        }
     }
 
     /// The two triangles of the light rectangle.
     #[must_use]
     pub fn light_triangle(&self, i: usize) -> UniformTriangle {
-        let Shape::Rect { corner, e1, e2 } = self.shapes[self.light] else { unreachable!("the light is a rectangle") };
+        let Shape::Rect { corner, e1, e2 } = self.shapes[self.light] else {
+            unreachable!("the light is a rectangle")
+        };
         if i == 0 {
             UniformTriangle::new(corner, corner + e1, corner + e1 + e2)
         } else {
@@ -192,7 +218,11 @@ impl RayCaster<TestVertex> for TestScene {
         }
         best.map(|(t, k, n)| {
             let position = (o.as_dvec3() + f64::from(t) * direction.as_dvec3()).as_vec3();
-            TestVertex { position, geometry: Geometry::Surface { normal: n }, shape: k as u32 }
+            TestVertex {
+                position,
+                geometry: Geometry::Surface { normal: n },
+                shape: k as u32,
+            }
         })
     }
 }
@@ -206,16 +236,53 @@ pub struct CameraPoint {
 
 impl Default for CameraPoint {
     fn default() -> Self {
-        CameraPoint { position: Vec3::new(0.0, 0.0, 1.0) }
+        CameraPoint {
+            position: Vec3::new(0.0, 0.0, 1.0),
+        }
     }
 }
 
 impl Strategy<TestVertex> for CameraPoint {
-    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        _prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         DiracPoint::new(TestVertex::point(self.position), 1.0)
     }
     fn memory(&self) -> usize {
         0
+    }
+}
+
+/// A camera ray from the pinhole: a uniform direction in a cone of
+/// half-angle 53° about −z, then a ray (it sees the floor and the walls).
+#[derive(Clone, Copy, Debug)]
+pub struct LookDown<'s> {
+    scene: &'s TestScene,
+}
+
+impl<'s> LookDown<'s> {
+    /// Camera rays in `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene) -> Self {
+        LookDown { scene }
+    }
+}
+
+impl Strategy<TestVertex> for LookDown<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let eye = prefix.last().expect("the pinhole");
+        Intersect::new(
+            eye,
+            InFrame::new(Frame::from_normal(-Vec3::Z), UniformCone::new(0.6)),
+            self.scene,
+        )
+    }
+    fn memory(&self) -> usize {
+        1
     }
 }
 
@@ -239,16 +306,28 @@ impl<'s> Bounce<'s> {
 pub fn facing_normal(x: &TestVertex, towards: Option<&TestVertex>) -> Vec3 {
     let n = x.normal();
     match towards {
-        Some(p) if matches!(x.geometry, Geometry::Surface { .. }) && (p.position - x.position).dot(n) < 0.0 => -n,
+        Some(p)
+            if matches!(x.geometry, Geometry::Surface { .. })
+                && (p.position - x.position).dot(n) < 0.0 =>
+        {
+            -n
+        }
         _ => n,
     }
 }
 
 impl Strategy<TestVertex> for Bounce<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let x = prefix.last().expect("a bounce leaves from a vertex");
         let n = facing_normal(x, prefix.back(1));
-        Intersect::new(x, InFrame::new(Frame::from_normal(n), CosineHemisphere), self.scene)
+        Intersect::new(
+            x,
+            InFrame::new(Frame::from_normal(n), CosineHemisphere),
+            self.scene,
+        )
     }
     fn memory(&self) -> usize {
         2
@@ -272,9 +351,16 @@ impl<'s> LightSample<'s> {
 }
 
 impl Strategy<TestVertex> for LightSample<'_> {
-    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        _prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let scene = self.scene;
-        let on_light = move |i: usize| OnSurface::new(scene.light_triangle(i), move |p| Some(scene.vertex_on(scene.light, p)));
+        let on_light = move |i: usize| {
+            OnSurface::new(scene.light_triangle(i), move |p| {
+                Some(scene.vertex_on(scene.light, p))
+            })
+        };
         let which = move |v: &Step<TestVertex>| match v {
             Step::Vertex(v) if v.shape as usize == scene.light => {
                 (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
@@ -328,7 +414,10 @@ impl Parameterization<Step<TestVertex>> for RectChart<'_> {
         }
         let (c, e1, e2) = self.edges();
         let d = (v.position - c).as_dvec3();
-        Some([d.dot(e1.as_dvec3()) / f64::from(e1.length_squared()), d.dot(e2.as_dvec3()) / f64::from(e2.length_squared())])
+        Some([
+            d.dot(e1.as_dvec3()) / f64::from(e1.length_squared()),
+            d.dot(e2.as_dvec3()) / f64::from(e2.length_squared()),
+        ])
     }
     fn jacobian(&self, _s: [f64; 2]) -> f64 {
         let (_, e1, e2) = self.edges();
@@ -351,7 +440,12 @@ impl<'s> SphereChart<'s> {
     #[must_use]
     pub fn new(scene: &'s TestScene, shape: usize) -> Self {
         debug_assert!(matches!(scene.shapes[shape], Shape::Sphere { .. }));
-        SphereChart { scene, shape, frame: Frame::WORLD, one_minus_cos_cap: 2.0 }
+        SphereChart {
+            scene,
+            shape,
+            frame: Frame::WORLD,
+            one_minus_cos_cap: 2.0,
+        }
     }
 
     /// The chart of the cap of sphere `shape` that is visible from `point`.
@@ -361,7 +455,11 @@ impl<'s> SphereChart<'s> {
         let (c, r) = chart.sphere();
         let d = point - c;
         let cos_cap = f64::from(r) / f64::from(d.length());
-        SphereChart { frame: Frame::from_normal(d.normalize()), one_minus_cos_cap: 1.0 - cos_cap, ..chart }
+        SphereChart {
+            frame: Frame::from_normal(d.normalize()),
+            one_minus_cos_cap: 1.0 - cos_cap,
+            ..chart
+        }
     }
 
     fn sphere(&self) -> (Vec3, f32) {
@@ -381,8 +479,15 @@ impl Parameterization<Step<TestVertex>> for SphereChart<'_> {
         let omc = s[0] * self.one_minus_cos_cap;
         let sin = (omc * (2.0 - omc)).max(0.0).sqrt();
         let phi = std::f64::consts::TAU * s[1];
-        let local = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, (1.0 - omc) as f32);
-        Some(Step::Vertex(self.scene.vertex_on(self.shape, c + r * self.frame.to_world(local))))
+        let local = Vec3::new(
+            (sin * phi.cos()) as f32,
+            (sin * phi.sin()) as f32,
+            (1.0 - omc) as f32,
+        );
+        Some(Step::Vertex(
+            self.scene
+                .vertex_on(self.shape, c + r * self.frame.to_world(local)),
+        ))
     }
     fn coords(&self, v: &Step<TestVertex>) -> Option<[f64; 2]> {
         let Step::Vertex(v) = v else { return None };
@@ -391,10 +496,21 @@ impl Parameterization<Step<TestVertex>> for SphereChart<'_> {
         }
         let (c, _) = self.sphere();
         let local = self.frame.to_local((v.position - c).normalize()).as_dvec3();
-        let omc = if local.z > 0.0 { (local.x * local.x + local.y * local.y) / (1.0 + local.z) } else { 1.0 - local.z };
+        let omc = if local.z > 0.0 {
+            (local.x * local.x + local.y * local.y) / (1.0 + local.z)
+        } else {
+            1.0 - local.z
+        };
         let s0 = omc / self.one_minus_cos_cap;
         let phi = local.y.atan2(local.x);
-        (s0 <= 1.0).then_some([s0, if phi < 0.0 { phi / std::f64::consts::TAU + 1.0 } else { phi / std::f64::consts::TAU }])
+        (s0 <= 1.0).then_some([
+            s0,
+            if phi < 0.0 {
+                phi / std::f64::consts::TAU + 1.0
+            } else {
+                phi / std::f64::consts::TAU
+            },
+        ])
     }
     fn jacobian(&self, _s: [f64; 2]) -> f64 {
         let r = f64::from(self.sphere().1);

@@ -5,8 +5,12 @@
 
 use aether_core::harness::{Check, Grid, check_strategy};
 use aether_core::primitives::{CosineHemisphere, GgxVisibleNormals, Reflect, UniformCone};
-use aether_core::testing::{Bounce, LightSample, RectChart, SphereChart, TestScene, TestVertex, facing_normal};
-use aether_core::{Distribution, Frame, InFrame, Intersect, Prefix, RussianRoulette, Step, Strategy};
+use aether_core::testing::{
+    Bounce, LightSample, RectChart, SphereChart, TestScene, TestVertex, facing_normal,
+};
+use aether_core::{
+    Distribution, Frame, InFrame, Intersect, Prefix, RussianRoulette, Step, Strategy,
+};
 use glam::Vec3;
 
 const FLOOR: usize = 0;
@@ -22,12 +26,24 @@ fn floor_point(scene: &TestScene) -> TestVertex {
 struct SphereLight<'s>(&'s TestScene);
 
 impl Strategy<TestVertex> for SphereLight<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let x = prefix.last().expect("a shading point");
-        let aether_core::testing::Shape::Sphere { center, radius } = self.0.shapes[SPHERE] else { unreachable!() };
+        let aether_core::testing::Shape::Sphere { center, radius } = self.0.shapes[SPHERE] else {
+            unreachable!()
+        };
         let to_center = center - x.position;
-        let cone = UniformCone::subtended(f64::from(radius * radius), f64::from(to_center.length_squared()));
-        Intersect::new(x, InFrame::new(Frame::from_normal(to_center.normalize()), cone), self.0)
+        let cone = UniformCone::subtended(
+            f64::from(radius * radius),
+            f64::from(to_center.length_squared()),
+        );
+        Intersect::new(
+            x,
+            InFrame::new(Frame::from_normal(to_center.normalize()), cone),
+            self.0,
+        )
     }
     fn memory(&self) -> usize {
         1
@@ -39,7 +55,10 @@ impl Strategy<TestVertex> for SphereLight<'_> {
 struct Glossy<'s>(&'s TestScene, f32);
 
 impl Strategy<TestVertex> for Glossy<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let x = prefix.last().expect("a shading point");
         let from = prefix.back(1).expect("an incoming direction");
         let frame = Frame::from_normal(facing_normal(x, Some(from)));
@@ -56,17 +75,27 @@ impl Strategy<TestVertex> for Glossy<'_> {
 struct RouletteBounce<'s>(&'s TestScene, f64);
 
 impl Strategy<TestVertex> for RouletteBounce<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let x = prefix.last().expect("a shading point");
         let frame = Frame::from_normal(facing_normal(x, prefix.back(1)));
-        RussianRoulette::new(self.1, Intersect::new(x, InFrame::new(frame, CosineHemisphere), self.0))
+        RussianRoulette::new(
+            self.1,
+            Intersect::new(x, InFrame::new(frame, CosineHemisphere), self.0),
+        )
     }
     fn memory(&self) -> usize {
         1
     }
 }
 
-fn passes<S: Strategy<TestVertex>>(s: &S, prefix: &[TestVertex], chart: &impl aether_core::harness::Chart<Step<TestVertex>>) -> aether_core::harness::Report {
+fn passes<S: Strategy<TestVertex>>(
+    s: &S,
+    prefix: &[TestVertex],
+    chart: &impl aether_core::harness::Chart<Step<TestVertex>>,
+) -> aether_core::harness::Report {
     let r = check_strategy(s, prefix, chart, &Check::default()).unwrap_or_else(|f| panic!("{f}"));
     println!("{r}");
     r
@@ -75,31 +104,53 @@ fn passes<S: Strategy<TestVertex>>(s: &S, prefix: &[TestVertex], chart: &impl ae
 #[test]
 fn cosine_bounce_onto_a_wall() {
     let scene = TestScene::open_box();
-    let r = passes(&Bounce::new(&scene), &[floor_point(&scene)], &Grid::new(RectChart::new(&scene, WALL_X), 16));
+    let r = passes(
+        &Bounce::new(&scene),
+        &[floor_point(&scene)],
+        &Grid::new(RectChart::new(&scene, WALL_X), 16),
+    );
     assert!(r.jacobian_checked > 100, "{r}");
-    assert!(r.integral > 0.05 && r.integral < 0.5, "the wall takes part of the hemisphere: {r}");
+    assert!(
+        r.integral > 0.05 && r.integral < 0.5,
+        "the wall takes part of the hemisphere: {r}"
+    );
 }
 
 #[test]
 fn sphere_light_by_cone_then_intersect() {
     let scene = TestScene::open_box();
     let x = floor_point(&scene);
-    let r = passes(&SphereLight(&scene), &[x], &Grid::new(SphereChart::visible_from(&scene, SPHERE, x.position), 16));
-    assert!((r.integral - 1.0).abs() < 2e-3, "every cone direction hits the visible cap: {r}");
+    let r = passes(
+        &SphereLight(&scene),
+        &[x],
+        &Grid::new(SphereChart::visible_from(&scene, SPHERE, x.position), 16),
+    );
+    assert!(
+        (r.integral - 1.0).abs() < 2e-3,
+        "every cone direction hits the visible cap: {r}"
+    );
 }
 
 #[test]
 fn ggx_reflection_then_intersect() {
     let scene = TestScene::open_box();
     let camera = TestVertex::point(Vec3::new(0.6, 0.2, 1.2));
-    let r = passes(&Glossy(&scene, 0.35), &[camera, floor_point(&scene)], &Grid::new(RectChart::new(&scene, WALL_X), 16));
+    let r = passes(
+        &Glossy(&scene, 0.35),
+        &[camera, floor_point(&scene)],
+        &Grid::new(RectChart::new(&scene, WALL_X), 16),
+    );
     assert!(r.jacobian_checked > 100, "{r}");
 }
 
 #[test]
 fn light_sampling_by_area_over_triangles() {
     let scene = TestScene::open_box();
-    let r = passes(&LightSample::new(&scene), &[floor_point(&scene)], &Grid::new(RectChart::new(&scene, scene.light), 16));
+    let r = passes(
+        &LightSample::new(&scene),
+        &[floor_point(&scene)],
+        &Grid::new(RectChart::new(&scene, scene.light), 16),
+    );
     assert!((r.integral - 1.0).abs() < 1e-6, "{r}");
 }
 
@@ -114,7 +165,9 @@ fn russian_roulette_termination_is_an_event() {
     let d = s.distribution(Prefix::forward(std::slice::from_ref(&x)));
     assert!((d.density(&Step::Terminated).value() - (1.0 - q)).abs() < 1e-12);
     let hit = d.sample(&[0.2, 0.5]).expect("continued").value;
-    let plain = Bounce::new(&scene).distribution(Prefix::forward(std::slice::from_ref(&x))).density(&hit);
+    let plain = Bounce::new(&scene)
+        .distribution(Prefix::forward(std::slice::from_ref(&x)))
+        .density(&hit);
     assert!((d.density(&hit).value() - q * plain.value()).abs() < 1e-12 * plain.value());
 }
 
@@ -129,7 +182,14 @@ fn density_mode_casts_no_rays() {
     }
     let scene = TestScene::open_box();
     let x = floor_point(&scene);
-    let hit = Bounce::new(&scene).distribution(Prefix::forward(std::slice::from_ref(&x))).sample(&[0.3, 0.3]).unwrap();
-    let blind = Intersect::new(&x, InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere), NoRays);
+    let hit = Bounce::new(&scene)
+        .distribution(Prefix::forward(std::slice::from_ref(&x)))
+        .sample(&[0.3, 0.3])
+        .unwrap();
+    let blind = Intersect::new(
+        &x,
+        InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere),
+        NoRays,
+    );
     assert_eq!(blind.density(&hit.value), hit.density);
 }

@@ -3,26 +3,15 @@
 //! evaluation, and unbiasedness of a two-strategy estimator.
 
 use aether_core::harness::{Technique, check_mis};
-use aether_core::primitives::{CosineHemisphere, DiracDirection, DiscreteDistribution, UniformCone};
-use aether_core::testing::{Bounce, CameraPoint, LightSample, TestScene, TestVertex, facing_normal};
+use aether_core::primitives::{CosineHemisphere, DiracDirection, DiscreteDistribution};
+use aether_core::testing::{
+    Bounce, CameraPoint, LightSample, LookDown, TestScene, TestVertex, facing_normal,
+};
 use aether_core::{
-    DiracPoint, Distribution, Either, Frame, Geometry, Heuristic, InFrame, Intersect, Mixture, OnSurface, Pcg32, Prefix, RandomSequence, Select, Step,
-    Strategy, combine, reflect,
+    DiracPoint, Distribution, Either, Frame, Geometry, Heuristic, InFrame, Intersect, Mixture,
+    OnSurface, Pcg32, Prefix, RandomSequence, Select, Step, Strategy, combine, reflect,
 };
 use glam::Vec3;
-
-/// From the pinhole, a uniform direction in a cone looking down, then a ray.
-struct Look<'s>(&'s TestScene);
-
-impl Strategy<TestVertex> for Look<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
-        let eye = prefix.last().expect("the pinhole");
-        Intersect::new(eye, InFrame::new(Frame::from_normal(-Vec3::Z), UniformCone::new(0.6)), self.0)
-    }
-    fn memory(&self) -> usize {
-        1
-    }
-}
 
 /// A BSDF with a diffuse lobe and a mirror lobe (a Dirac).
 struct DiffuseAndMirror<'s> {
@@ -31,7 +20,10 @@ struct DiffuseAndMirror<'s> {
 }
 
 impl Strategy<TestVertex> for DiffuseAndMirror<'_> {
-    fn distribution<'a>(&'a self, prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let x = prefix.last().expect("a shading point");
         let from = prefix.back(1).expect("an incoming direction");
         let n = facing_normal(x, Some(from));
@@ -57,19 +49,29 @@ struct Lights<'s> {
 impl<'s> Lights<'s> {
     fn new(scene: &'s TestScene, point_light_probability: f64) -> Self {
         let area = (1.0 - point_light_probability) / 2.0;
-        Lights { scene, choice: DiscreteDistribution::new(&[area, area, point_light_probability]).unwrap() }
+        Lights {
+            scene,
+            choice: DiscreteDistribution::new(&[area, area, point_light_probability]).unwrap(),
+        }
     }
 }
 
 impl Strategy<TestVertex> for Lights<'_> {
-    fn distribution<'a>(&'a self, _prefix: Prefix<'a, TestVertex>) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+    fn distribution<'a>(
+        &'a self,
+        _prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
         let scene = self.scene;
         let branch = move |i: usize| match i {
-            0 | 1 => Either::Left(OnSurface::new(scene.light_triangle(i), move |p| Some(scene.vertex_on(scene.light, p)))),
+            0 | 1 => Either::Left(OnSurface::new(scene.light_triangle(i), move |p| {
+                Some(scene.vertex_on(scene.light, p))
+            })),
             _ => Either::Right(DiracPoint::new(TestVertex::point(scene.point_light), 1.0)),
         };
         let which = move |v: &Step<TestVertex>| match v {
-            Step::Vertex(v) if v.shape as usize == scene.light => (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some()),
+            Step::Vertex(v) if v.shape as usize == scene.light => {
+                (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
+            }
             Step::Vertex(v) if v.geometry == Geometry::Point => Some(2),
             _ => None,
         };
@@ -87,10 +89,22 @@ fn is_on_light(scene: &TestScene, v: &TestVertex) -> bool {
 #[test]
 fn dirac_lobe_and_point_light_partition_of_unity() {
     let scene = TestScene::open_box();
-    let (camera, look) = (CameraPoint::default(), Look(&scene));
-    let bsdf = DiffuseAndMirror { scene: &scene, lobes: DiscreteDistribution::new(&[0.6, 0.4]).unwrap() };
+    let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
+    let bsdf = DiffuseAndMirror {
+        scene: &scene,
+        lobes: DiscreteDistribution::new(&[0.6, 0.4]).unwrap(),
+    };
     let lights = Lights::new(&scene, 0.3);
-    let techniques = [Technique::new().forward(&camera).forward(&look).forward(&bsdf), Technique::new().forward(&camera).forward(&look).forward(&lights)];
+    let techniques = [
+        Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .forward(&bsdf),
+        Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .forward(&lights),
+    ];
     for heuristic in [Heuristic::Balance, Heuristic::POWER] {
         let report = check_mis(&techniques, heuristic, 2000, &mut Pcg32::new(11, 0)).unwrap();
         println!("{heuristic:?}: {report:?}");
@@ -109,14 +123,18 @@ fn dirac_lobe_and_point_light_partition_of_unity() {
         let (mut via_bsdf, mut via_light) = (cam.clone(), cam.clone());
         via_bsdf.append(&bsdf);
         via_light.append(&lights);
-        if via_light.sample(&mut rng) == aether_core::StepKind::Vertex && via_light.vertices()[2].geometry == Geometry::Point {
+        if via_light.sample(&mut rng) == aether_core::StepKind::Vertex
+            && via_light.vertices()[2].geometry == Geometry::Point
+        {
             // A point light: BSDF sampling cannot hit it.
             let as_bsdf = techniques[0].assign(&via_light).unwrap();
             let w = combine(&[as_bsdf, via_light.clone()], Heuristic::POWER);
             assert_eq!(w.as_slice(), &[0.0, 1.0]);
             point_light += 1;
         }
-        if via_bsdf.sample(&mut rng) == aether_core::StepKind::Vertex && is_on_light(&scene, &via_bsdf.vertices()[2]) {
+        if via_bsdf.sample(&mut rng) == aether_core::StepKind::Vertex
+            && is_on_light(&scene, &via_bsdf.vertices()[2])
+        {
             let as_light = techniques[1].assign(&via_bsdf).unwrap();
             let w = combine(&[via_bsdf.clone(), as_light], Heuristic::POWER);
             let p = via_bsdf.pdf();
@@ -125,31 +143,46 @@ fn dirac_lobe_and_point_light_partition_of_unity() {
                 assert_eq!(w.as_slice(), &[1.0, 0.0]);
                 mirror_to_light += 1;
             } else {
-                assert!(w[0] > 0.0 && w[0] < 1.0 && (w[0] + w[1] - 1.0).abs() < 1e-12, "{w:?}");
+                assert!(
+                    w[0] > 0.0 && w[0] < 1.0 && (w[0] + w[1] - 1.0).abs() < 1e-12,
+                    "{w:?}"
+                );
                 diffuse_to_light += 1;
             }
         }
     }
-    println!("point light {point_light}, mirror to light {mirror_to_light}, diffuse to light {diffuse_to_light}");
+    println!(
+        "point light {point_light}, mirror to light {mirror_to_light}, diffuse to light {diffuse_to_light}"
+    );
     assert!(point_light > 100 && mirror_to_light > 10 && diffuse_to_light > 10);
 }
 
 #[test]
 fn dirac_masses_cancel_exactly() {
     let scene = TestScene::open_box();
-    let (camera, look) = (CameraPoint::default(), Look(&scene));
+    let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
     let (a, b) = (Lights::new(&scene, 0.3), Lights::new(&scene, 0.1));
     let mut rng = Pcg32::new(9, 0);
     let mut checked = 0;
     while checked < 50 {
         let mut path = RandomSequence::new();
         path.append(&camera).append(&look).append(&a);
-        if path.sample(&mut rng) != aether_core::StepKind::Vertex || path.vertices()[2].geometry != Geometry::Point {
+        if path.sample(&mut rng) != aether_core::StepKind::Vertex
+            || path.vertices()[2].geometry != Geometry::Point
+        {
             continue;
         }
-        let under_b = Technique::new().forward(&camera).forward(&look).forward(&b).assign(&path).unwrap();
+        let under_b = Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .forward(&b)
+            .assign(&path)
+            .unwrap();
         let wb = combine(&[path.clone(), under_b.clone()], Heuristic::Balance);
-        assert!((wb[0] - 0.75).abs() < 1e-12 && (wb[1] - 0.25).abs() < 1e-12, "{wb:?}");
+        assert!(
+            (wb[0] - 0.75).abs() < 1e-12 && (wb[1] - 0.25).abs() < 1e-12,
+            "{wb:?}"
+        );
         let wp = combine(&[path, under_b], Heuristic::POWER);
         assert!((wp[0] - 0.9).abs() < 1e-12, "{wp:?}");
         checked += 1;
@@ -159,14 +192,39 @@ fn dirac_masses_cancel_exactly() {
 #[test]
 fn bdpt_candidates_match_direct_evaluation() {
     let scene = TestScene::open_box();
-    let (camera, look, bounce, light) = (CameraPoint::default(), Look(&scene), Bounce::new(&scene), LightSample::new(&scene));
+    let (camera, look, bounce, light) = (
+        CameraPoint::default(),
+        LookDown::new(&scene),
+        Bounce::new(&scene),
+        LightSample::new(&scene),
+    );
     // All (s, t) splits of a four-vertex path, ordered by s.
     let techniques = [
-        Technique::new().reversed(&bounce).reversed(&bounce).reversed(&bounce).reversed(&light),
-        Technique::new().forward(&camera).reversed(&bounce).reversed(&bounce).reversed(&light),
-        Technique::new().forward(&camera).forward(&look).reversed(&bounce).reversed(&light),
-        Technique::new().forward(&camera).forward(&look).forward(&bounce).reversed(&light),
-        Technique::new().forward(&camera).forward(&look).forward(&bounce).forward(&bounce),
+        Technique::new()
+            .reversed(&bounce)
+            .reversed(&bounce)
+            .reversed(&bounce)
+            .reversed(&light),
+        Technique::new()
+            .forward(&camera)
+            .reversed(&bounce)
+            .reversed(&bounce)
+            .reversed(&light),
+        Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .reversed(&bounce)
+            .reversed(&light),
+        Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .forward(&bounce)
+            .reversed(&light),
+        Technique::new()
+            .forward(&camera)
+            .forward(&look)
+            .forward(&bounce)
+            .forward(&bounce),
     ];
     for heuristic in [Heuristic::Balance, Heuristic::POWER, Heuristic::Power(3.0)] {
         let report = check_mis(&techniques, heuristic, 400, &mut Pcg32::new(21, 3)).unwrap();
@@ -178,8 +236,13 @@ fn bdpt_candidates_match_direct_evaluation() {
     let mut rng = Pcg32::new(4, 4);
     let mut checked = 0;
     while checked < 200 {
-        let Some(path) = techniques[3].sample(&mut rng) else { continue };
-        let candidates: Vec<_> = techniques.iter().map(|t| t.assign(&path).unwrap()).collect();
+        let Some(path) = techniques[3].sample(&mut rng) else {
+            continue;
+        };
+        let candidates: Vec<_> = techniques
+            .iter()
+            .map(|t| t.assign(&path).unwrap())
+            .collect();
         let w = combine(&candidates, Heuristic::POWER);
         assert_eq!(w[0], 0.0);
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -202,7 +265,8 @@ fn mis_estimator_is_unbiased() {
         let d = y.position - x.position;
         let r2 = f64::from(d.length_squared());
         let w = d.normalize();
-        f64::from(w.z.max(0.0)) * f64::from((-w).dot(y.normal()).max(0.0)) / (std::f64::consts::PI * r2)
+        f64::from(w.z.max(0.0)) * f64::from((-w).dot(y.normal()).max(0.0))
+            / (std::f64::consts::PI * r2)
     };
     let base = RandomSequence::given([x]);
     let mut rng = Pcg32::new(77, 0);
@@ -239,5 +303,8 @@ fn mis_estimator_is_unbiased() {
     }
     reference /= f64::from(m);
     println!("MIS {mean} ± {sigma}, reference {reference}");
-    assert!((mean - reference).abs() < 4.0 * sigma, "MIS {mean} ± {sigma} vs {reference}");
+    assert!(
+        (mean - reference).abs() < 4.0 * sigma,
+        "MIS {mean} ± {sigma} vs {reference}"
+    );
 }

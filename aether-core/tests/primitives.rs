@@ -1,10 +1,12 @@
 //! The harness on every primitive: agreement, inversion, finite-difference
 //! Jacobian and chi-square (p > 0.01 at a fixed seed).
 
-use aether_core::harness::{Categories, Check, Disk, Grid, Interval, SphereDirections, Square, Triangle, check};
+use aether_core::harness::{
+    Categories, Check, Disk, Grid, Interval, SphereDirections, Square, Triangle, check,
+};
 use aether_core::primitives::*;
 use aether_core::{Distribution, Embed, Frame, InFrame, Mixture, Select};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use proptest::prelude::*;
 
 fn run<D>(d: &D, chart: &impl aether_core::harness::Chart<D::Value>) -> aether_core::harness::Report
@@ -19,7 +21,10 @@ where
 
 #[test]
 fn uniform_interval() {
-    run(&UniformInterval::new(-1.0, 3.0), &Grid::new(Interval(-1.0, 3.0), 64));
+    run(
+        &UniformInterval::new(-1.0, 3.0),
+        &Grid::new(Interval(-1.0, 3.0), 64),
+    );
 }
 
 #[test]
@@ -59,7 +64,12 @@ fn uniform_cones_wide_and_tiny() {
     run(&UniformCone::new(0.3), &Grid::new(SphereDirections, 16));
     // A distant sphere light: sin² θ_max = 1e-6. The chart is the cone's own.
     let tiny = UniformCone::subtended(1e-6, 1.0);
-    check(&tiny, &Grid::new(ConeChart(tiny.cos_max()), 16), &Check::default()).unwrap_or_else(|f| panic!("{f}"));
+    check(
+        &tiny,
+        &Grid::new(ConeChart(tiny.cos_max()), 16),
+        &Check::default(),
+    )
+    .unwrap_or_else(|f| panic!("{f}"));
 }
 
 /// Directions of a cone by ((1 − cos θ)/(1 − cos θ_max), φ/2π).
@@ -73,13 +83,24 @@ impl aether_core::harness::Parameterization<Vec3> for ConeChart {
         let omc = s[0] * (1.0 - self.0);
         let sin = (omc * (2.0 - omc)).sqrt();
         let phi = 2.0 * std::f64::consts::PI * s[1];
-        Some(Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, (1.0 - omc) as f32))
+        Some(Vec3::new(
+            (sin * phi.cos()) as f32,
+            (sin * phi.sin()) as f32,
+            (1.0 - omc) as f32,
+        ))
     }
     fn coords(&self, w: &Vec3) -> Option<[f64; 2]> {
         let w = w.as_dvec3();
         let omc = (w.x * w.x + w.y * w.y) / (1.0 + w.z);
         let phi = w.y.atan2(w.x);
-        Some([omc / (1.0 - self.0), if phi < 0.0 { phi / std::f64::consts::TAU + 1.0 } else { phi / std::f64::consts::TAU }])
+        Some([
+            omc / (1.0 - self.0),
+            if phi < 0.0 {
+                phi / std::f64::consts::TAU + 1.0
+            } else {
+                phi / std::f64::consts::TAU
+            },
+        ])
     }
     fn jacobian(&self, _s: [f64; 2]) -> f64 {
         std::f64::consts::TAU * (1.0 - self.0)
@@ -88,8 +109,15 @@ impl aether_core::harness::Parameterization<Vec3> for ConeChart {
 
 #[test]
 fn uniform_triangle() {
-    let (a, b, c) = (Vec3::new(0.0, 0.0, 1.0), Vec3::new(2.0, 0.5, 1.0), Vec3::new(0.5, 1.5, 1.5));
-    run(&UniformTriangle::new(a, b, c), &Grid::new(Triangle(a, b, c), 16));
+    let (a, b, c) = (
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(2.0, 0.5, 1.0),
+        Vec3::new(0.5, 1.5, 1.5),
+    );
+    run(
+        &UniformTriangle::new(a, b, c),
+        &Grid::new(Triangle(a, b, c), 16),
+    );
 }
 
 #[test]
@@ -100,7 +128,9 @@ fn piecewise_constant_1d() {
 
 #[test]
 fn piecewise_constant_2d() {
-    let values: Vec<f64> = (0..12 * 8).map(|i| ((i * 7919) % 13) as f64 + if i % 5 == 0 { 0.0 } else { 0.5 }).collect();
+    let values: Vec<f64> = (0..12 * 8)
+        .map(|i| ((i * 7919) % 13) as f64 + if i % 5 == 0 { 0.0 } else { 0.5 })
+        .collect();
     let d = PiecewiseConstant2D::new(&values, 12, 8).unwrap();
     run(&d, &Grid::new(Square, 24));
 }
@@ -108,44 +138,76 @@ fn piecewise_constant_2d() {
 #[test]
 fn frame_change_keeps_density() {
     let frame = Frame::from_normal(Vec3::new(0.3, -0.4, 0.866).normalize());
-    run(&InFrame::new(frame, CosineHemisphere), &Grid::new(SphereDirections, 16));
+    run(
+        &InFrame::new(frame, CosineHemisphere),
+        &Grid::new(SphereDirections, 16),
+    );
 }
 
 #[test]
 fn ggx_visible_normals_isotropic_and_anisotropic() {
-    for (ax, ay, wi) in [(0.3, 0.3, Vec3::new(0.5, 0.1, 0.86)), (0.08, 0.5, Vec3::new(-0.7, 0.3, 0.3)), (0.9, 0.9, Vec3::Z)] {
-        run(&GgxVisibleNormals::new(ax, ay, wi.normalize()), &Grid::new(SphereDirections, 16));
+    for (ax, ay, wi) in [
+        (0.3, 0.3, Vec3::new(0.5, 0.1, 0.86)),
+        (0.08, 0.5, Vec3::new(-0.7, 0.3, 0.3)),
+        (0.9, 0.9, Vec3::Z),
+    ] {
+        run(
+            &GgxVisibleNormals::new(ax, ay, wi.normalize()),
+            &Grid::new(SphereDirections, 16),
+        );
     }
 }
 
 #[test]
 fn beckmann_normals() {
     for alpha in [0.1, 0.4, 1.0] {
-        run(&BeckmannNormals::new(alpha), &Grid::new(SphereDirections, 16));
+        run(
+            &BeckmannNormals::new(alpha),
+            &Grid::new(SphereDirections, 16),
+        );
     }
 }
 
 #[test]
 fn microfacet_reflection_has_half_vector_jacobian() {
     let wi = Vec3::new(0.4, -0.2, 0.89).normalize();
-    run(&Reflect::new(wi, GgxVisibleNormals::new(0.25, 0.4, wi)), &Grid::new(SphereDirections, 16));
-    run(&Reflect::new(wi, BeckmannNormals::new(0.3)), &Grid::new(SphereDirections, 16));
+    run(
+        &Reflect::new(wi, GgxVisibleNormals::new(0.25, 0.4, wi)),
+        &Grid::new(SphereDirections, 16),
+    );
+    run(
+        &Reflect::new(wi, BeckmannNormals::new(0.3)),
+        &Grid::new(SphereDirections, 16),
+    );
 }
 
 #[test]
 fn microfacet_refraction_has_half_vector_jacobian() {
     let wi = Vec3::new(0.5, 0.2, 0.84).normalize();
     // Entering glass, and leaving it (where total internal reflection voids samples).
-    run(&Refract::new(wi, 1.5, GgxVisibleNormals::new(0.3, 0.3, wi)), &Grid::new(SphereDirections, 16));
-    run(&Refract::new(wi, 1.0 / 1.5, BeckmannNormals::new(0.2)), &Grid::new(SphereDirections, 16));
+    run(
+        &Refract::new(wi, 1.5, GgxVisibleNormals::new(0.3, 0.3, wi)),
+        &Grid::new(SphereDirections, 16),
+    );
+    run(
+        &Refract::new(wi, 1.0 / 1.5, BeckmannNormals::new(0.2)),
+        &Grid::new(SphereDirections, 16),
+    );
 }
 
 #[test]
 fn dirac_direction_is_an_atom() {
     let w = Vec3::new(0.0, 0.6, 0.8);
-    let r = run(&DiracDirection::new(w, 1.0), &Grid::new(SphereDirections, 8));
+    let r = run(
+        &DiracDirection::new(w, 1.0),
+        &Grid::new(SphereDirections, 8),
+    );
     assert_eq!(r.jacobian_checked, 0);
-    assert!(DiracDirection::new(w, 1.0).density(&Vec3::new(0.0, 0.61, 0.79).normalize()).is_zero());
+    assert!(
+        DiracDirection::new(w, 1.0)
+            .density(&Vec3::new(0.0, 0.61, 0.79).normalize())
+            .is_zero()
+    );
 }
 
 #[test]
@@ -156,9 +218,14 @@ fn lobe_mixture_with_a_dirac_lobe() {
     let choice = DiscreteDistribution::new(&[0.7, 0.3]).unwrap();
     let lobes = |i: usize| match i {
         0 => aether_core::Either::Left(Reflect::new(wi, GgxVisibleNormals::new(0.3, 0.3, wi))),
-        _ => aether_core::Either::Right(DiracDirection::new(aether_core::reflect(wi, Vec3::Z), 1.0)),
+        _ => {
+            aether_core::Either::Right(DiracDirection::new(aether_core::reflect(wi, Vec3::Z), 1.0))
+        }
     };
-    let r = run(&Mixture::new(&choice, 2, lobes), &Grid::new(SphereDirections, 16));
+    let r = run(
+        &Mixture::new(&choice, 2, lobes),
+        &Grid::new(SphereDirections, 16),
+    );
     assert!((r.integral - 1.0).abs() < 0.01, "{r}");
 }
 
@@ -195,14 +262,24 @@ impl aether_core::harness::Parameterization<Vec3> for Square3 {
     }
 }
 
+/// Parameter sets in the GGX sweep.
+const SWEEP: u32 = 64;
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        cases: SWEEP,
+        failure_persistence: None,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0xa37e),
+        ..ProptestConfig::default()
+    })]
 
     /// The harness over random parameters: GGX roughness and view direction.
+    /// With 64 chi-square tests, each is held to 0.01 / 64 (Bonferroni), so
+    /// that the sweep as a whole fails a correct density with probability 0.01.
     #[test]
     fn ggx_over_parameters(ax in 0.05f32..1.0, ay in 0.05f32..1.0, x in -0.9f32..0.9, y in -0.9f32..0.9) {
         let wi = Vec3::new(x, y, 0.2 + (1.0 - x * x - y * y).max(0.0).sqrt()).normalize();
-        let config = Check { cases: 64, samples: 20_000, ..Check::default() };
+        let config = Check { cases: 64, samples: 20_000, significance: 0.01 / f64::from(SWEEP), ..Check::default() };
         let d = Reflect::new(wi, GgxVisibleNormals::new(ax, ay, wi));
         check(&d, &Grid::new(SphereDirections, 12), &config).map_err(|f| TestCaseError::fail(f.to_string()))?;
     }
@@ -217,6 +294,5 @@ proptest! {
         let w = cone.sample(&[u0, u1]).unwrap().value;
         let back = cone.invert(&w).unwrap();
         prop_assert!((back[0] - u0).abs() < 1e-3);
-        let _ = Vec2::ZERO;
     }
 }

@@ -44,7 +44,11 @@ impl<P> Grid<P> {
     }
 }
 
-const GAUSS: [(f64, f64); 3] = [(-0.774_596_669_241_483_4, 5.0 / 9.0), (0.0, 8.0 / 9.0), (0.774_596_669_241_483_4, 5.0 / 9.0)];
+const GAUSS: [(f64, f64); 3] = [
+    (-0.774_596_669_241_483_4, 5.0 / 9.0),
+    (0.0, 8.0 / 9.0),
+    (0.774_596_669_241_483_4, 5.0 / 9.0),
+];
 const PANELS: usize = 4;
 
 impl<T, P: Parameterization<T>> Chart<T> for Grid<P> {
@@ -53,7 +57,9 @@ impl<T, P: Parameterization<T>> Chart<T> for Grid<P> {
     }
     fn cell_of(&self, value: &T) -> Option<usize> {
         let s = self.param.coords(value)?;
-        let idx = |x: f64| ((0.0..=1.0).contains(&x)).then(|| ((x * self.n as f64) as usize).min(self.n - 1));
+        let idx = |x: f64| {
+            ((0.0..=1.0).contains(&x)).then(|| ((x * self.n as f64) as usize).min(self.n - 1))
+        };
         match self.param.dims() {
             1 => idx(s[0]),
             _ => Some(idx(s[1])? * self.n + idx(s[0])?),
@@ -64,7 +70,11 @@ impl<T, P: Parameterization<T>> Chart<T> for Grid<P> {
         let f = |s: [f64; 2]| match self.param.value(s) {
             Some(v) => {
                 let p = density(&v);
-                if p > 0.0 { p * self.param.jacobian(s) } else { 0.0 }
+                if p > 0.0 {
+                    p * self.param.jacobian(s)
+                } else {
+                    0.0
+                }
             }
             None => 0.0,
         };
@@ -98,7 +108,10 @@ const MIN_DEPTH: u32 = 1;
 const TOLERANCE: f64 = 1e-5;
 
 fn gauss_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64) -> f64 {
-    GAUSS.iter().map(|&(x, wx)| wx * 0.5 * w * f([x0 + (x + 1.0) * 0.5 * w, 0.5])).sum()
+    GAUSS
+        .iter()
+        .map(|&(x, wx)| wx * 0.5 * w * f([x0 + (x + 1.0) * 0.5 * w, 0.5]))
+        .sum()
 }
 
 fn adaptive_1d(f: &dyn Fn([f64; 2]) -> f64, x0: f64, w: f64, coarse: f64, depth: u32) -> f64 {
@@ -113,7 +126,12 @@ fn gauss_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64) -> f64 {
     let mut total = 0.0;
     for &(x, wx) in &GAUSS {
         for &(y, wy) in &GAUSS {
-            total += wx * wy * 0.25 * w * w * f([o[0] + (x + 1.0) * 0.5 * w, o[1] + (y + 1.0) * 0.5 * w]);
+            total += wx
+                * wy
+                * 0.25
+                * w
+                * w
+                * f([o[0] + (x + 1.0) * 0.5 * w, o[1] + (y + 1.0) * 0.5 * w]);
         }
     }
     total
@@ -121,13 +139,22 @@ fn gauss_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64) -> f64 {
 
 fn adaptive_2d(f: &dyn Fn([f64; 2]) -> f64, o: [f64; 2], w: f64, coarse: f64, depth: u32) -> f64 {
     let half = w / 2.0;
-    let corners = [[o[0], o[1]], [o[0] + half, o[1]], [o[0], o[1] + half], [o[0] + half, o[1] + half]];
+    let corners = [
+        [o[0], o[1]],
+        [o[0] + half, o[1]],
+        [o[0], o[1] + half],
+        [o[0] + half, o[1] + half],
+    ];
     let parts = corners.map(|c| gauss_2d(f, c, half));
     let fine: f64 = parts.iter().sum();
     if depth >= MAX_DEPTH || (depth >= MIN_DEPTH && (fine - coarse).abs() <= TOLERANCE * w * w) {
         return fine;
     }
-    corners.iter().zip(parts).map(|(c, p)| adaptive_2d(f, *c, half, p, depth + 1)).sum()
+    corners
+        .iter()
+        .zip(parts)
+        .map(|(c, p)| adaptive_2d(f, *c, half, p, depth + 1))
+        .sum()
 }
 
 /// Discrete outcomes `0..n`, one cell each.
@@ -195,11 +222,17 @@ impl Parameterization<Vec2> for Disk {
     fn value(&self, s: [f64; 2]) -> Option<Vec2> {
         let rho = s[0].sqrt() * f64::from(self.0);
         let phi = 2.0 * PI * s[1];
-        Some(Vec2::new((rho * phi.cos()) as f32, (rho * phi.sin()) as f32))
+        Some(Vec2::new(
+            (rho * phi.cos()) as f32,
+            (rho * phi.sin()) as f32,
+        ))
     }
     fn coords(&self, v: &Vec2) -> Option<[f64; 2]> {
         let r = f64::from(self.0);
-        Some([f64::from(v.length_squared()) / (r * r), turn(f64::from(v.y), f64::from(v.x))])
+        Some([
+            f64::from(v.length_squared()) / (r * r),
+            turn(f64::from(v.y), f64::from(v.x)),
+        ])
     }
     fn jacobian(&self, _s: [f64; 2]) -> f64 {
         PI * f64::from(self.0).powi(2)
@@ -240,23 +273,38 @@ impl Parameterization<Vec3> for Triangle {
         2
     }
     fn value(&self, s: [f64; 2]) -> Option<Vec3> {
-        let (p0, e1, e2) = (self.0.as_dvec3(), (self.1 - self.0).as_dvec3(), (self.2 - self.0).as_dvec3());
+        let (p0, e1, e2) = (
+            self.0.as_dvec3(),
+            (self.1 - self.0).as_dvec3(),
+            (self.2 - self.0).as_dvec3(),
+        );
         Some((p0 + s[0] * e1 + s[1] * (1.0 - s[0]) * e2).as_vec3())
     }
     fn coords(&self, x: &Vec3) -> Option<[f64; 2]> {
-        let (b0, b1) = crate::primitives::UniformTriangle::new(self.0, self.1, self.2).barycentrics(*x)?;
+        let (b0, b1) =
+            crate::primitives::UniformTriangle::new(self.0, self.1, self.2).barycentrics(*x)?;
         // x = p0 + β e1 + γ e2 with β = b1, γ = 1 − b0 − b1.
         let s0 = b1;
-        let s1 = if s0 < 1.0 { (1.0 - b0 - b1) / (1.0 - s0) } else { 0.0 };
+        let s1 = if s0 < 1.0 {
+            (1.0 - b0 - b1) / (1.0 - s0)
+        } else {
+            0.0
+        };
         Some([s0, s1])
     }
     fn jacobian(&self, s: [f64; 2]) -> f64 {
-        let n = (self.1 - self.0).as_dvec3().cross((self.2 - self.0).as_dvec3());
+        let n = (self.1 - self.0)
+            .as_dvec3()
+            .cross((self.2 - self.0).as_dvec3());
         n.length() * (1.0 - s[0])
     }
 }
 
 fn turn(y: f64, x: f64) -> f64 {
     let phi = y.atan2(x);
-    if phi < 0.0 { phi / (2.0 * PI) + 1.0 } else { phi / (2.0 * PI) }
+    if phi < 0.0 {
+        phi / (2.0 * PI) + 1.0
+    } else {
+        phi / (2.0 * PI)
+    }
 }

@@ -20,7 +20,12 @@ struct Atom {
     count: f64,
 }
 
-pub(super) fn check_histogram<D>(d: &D, chart: &impl Chart<D::Value>, config: &Check, report: &mut Report) -> Result<(), Failure>
+pub(super) fn check_histogram<D>(
+    d: &D,
+    chart: &impl Chart<D::Value>,
+    config: &Check,
+    report: &mut Report,
+) -> Result<(), Failure>
 where
     D: Distribution,
     D::Value: Embed + fmt::Debug,
@@ -45,12 +50,20 @@ where
                 s.value.embed(&mut coords);
                 let mass = if continuous { 0.0 } else { s.density.value() };
                 let found = atoms.iter_mut().find(|a| {
-                    let close = a.coords.len() == coords.len() && a.coords.iter().zip(&coords).all(|(x, y)| (x - y).abs() <= 1e-4 * x.abs().max(1.0));
+                    let close = a.coords.len() == coords.len()
+                        && a.coords
+                            .iter()
+                            .zip(&coords)
+                            .all(|(x, y)| (x - y).abs() <= 1e-4 * x.abs().max(1.0));
                     close && (a.mass - mass).abs() <= 1e-9 * mass.max(1e-300)
                 });
                 match found {
                     Some(a) => a.count += 1.0,
-                    None => atoms.push(Atom { coords, mass, count: 1.0 }),
+                    None => atoms.push(Atom {
+                        coords,
+                        mass,
+                        count: 1.0,
+                    }),
                 }
             }
         }
@@ -61,13 +74,25 @@ where
         let p = d.density(v);
         if p.is_dirac() { 0.0 } else { p.value() }
     };
-    let mut cells: Vec<(String, f64, f64)> = (0..chart.cells()).map(|c| (format!("#{c}"), observed[c], n * chart.integrate(c, &density))).collect();
+    let mut cells: Vec<(String, f64, f64)> = (0..chart.cells())
+        .map(|c| {
+            (
+                format!("#{c}"),
+                observed[c],
+                n * chart.integrate(c, &density),
+            )
+        })
+        .collect();
     let mut integral = cells.iter().map(|c| c.2).sum::<f64>() / n;
     // Samples off the chart with a continuous density count as "elsewhere".
     let mut elsewhere = void;
     for a in &atoms {
         if a.mass > 0.0 {
-            cells.push((format!("atom at {:?} of mass {:.4}", a.coords.as_slice(), a.mass), a.count, n * a.mass));
+            cells.push((
+                format!("atom at {:?} of mass {:.4}", a.coords.as_slice(), a.mass),
+                a.count,
+                n * a.mass,
+            ));
             integral += a.mass;
         } else {
             elsewhere += a.count;
@@ -78,7 +103,11 @@ where
     if integral > 1.0 + 2e-3 {
         return Err(Failure::IntegralAboveOne { integral });
     }
-    cells.push(("elsewhere (void, off the chart)".to_string(), elsewhere, (n * (1.0 - integral)).max(0.0)));
+    cells.push((
+        "elsewhere (void, off the chart)".to_string(),
+        elsewhere,
+        (n * (1.0 - integral)).max(0.0),
+    ));
 
     // Pool the cells of smallest expected count until the pool reaches
     // MIN_EXPECTED. Cells whose support the quadrature misses (a sliver
@@ -107,7 +136,12 @@ where
             score(b).total_cmp(&score(a))
         });
         terms.truncate(5);
-        return Err(Failure::ChiSquare { statistic, dof, p_value, worst: terms });
+        return Err(Failure::ChiSquare {
+            statistic,
+            dof,
+            p_value,
+            worst: terms,
+        });
     }
     Ok(())
 }

@@ -27,14 +27,23 @@ fn embed<T: Embed>(v: &T) -> (Coords, usize) {
 /// principal minors of order m (columns of discrete choices are zero).
 fn gram_pseudo_determinant(columns: &[Coords], m: usize) -> f64 {
     let d = columns.len();
-    let gram = |i: usize, j: usize| columns[i].iter().zip(&columns[j]).map(|(a, b)| a * b).sum::<f64>();
+    let gram = |i: usize, j: usize| {
+        columns[i]
+            .iter()
+            .zip(&columns[j])
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+    };
     let mut total = 0.0;
     for mask in 0u32..(1 << d) {
         if mask.count_ones() as usize != m {
             continue;
         }
         let idx: Vec<usize> = (0..d).filter(|k| mask & (1 << k) != 0).collect();
-        let mut a: Vec<Vec<f64>> = idx.iter().map(|&i| idx.iter().map(|&j| gram(i, j)).collect()).collect();
+        let mut a: Vec<Vec<f64>> = idx
+            .iter()
+            .map(|&i| idx.iter().map(|&j| gram(i, j)).collect())
+            .collect();
         total += determinant(&mut a);
     }
     total
@@ -44,7 +53,9 @@ fn determinant(a: &mut [Vec<f64>]) -> f64 {
     let n = a.len();
     let mut det = 1.0;
     for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs())).unwrap_or(c);
+        let p = (c..n)
+            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+            .unwrap_or(c);
         if a[p][c] == 0.0 {
             return 0.0;
         }
@@ -53,10 +64,12 @@ fn determinant(a: &mut [Vec<f64>]) -> f64 {
             det = -det;
         }
         det *= a[c][c];
-        for r in c + 1..n {
-            let f = a[r][c] / a[c][c];
-            for k in c..n {
-                a[r][k] -= f * a[c][k];
+        let (top, bottom) = a.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for row in bottom {
+            let f = row[c] / pivot[c];
+            for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
             }
         }
     }
@@ -81,7 +94,12 @@ where
         let (c, mv) = embed(&d.sample(&v)?.value);
         (mv == m && c.len() == c0.len()).then_some((c, f64::from(v[k]) - f64::from(u[k])))
     };
-    let diff = |a: &Coords, b: &Coords, step: f64| a.iter().zip(b).map(|(x, y)| (x - y) / step).collect::<Coords>();
+    let diff = |a: &Coords, b: &Coords, step: f64| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y) / step)
+            .collect::<Coords>()
+    };
     let norm = |c: &Coords| c.iter().map(|x| x * x).sum::<f64>().sqrt();
     let (mut coarse, mut fine) = (Vec::with_capacity(u.len()), Vec::with_capacity(u.len()));
     for k in 0..u.len() {
@@ -114,7 +132,11 @@ where
 }
 
 fn distance(a: &Coords, b: &Coords) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt()
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[derive(Default)]
@@ -133,7 +155,11 @@ where
     let dims = d.dims();
     let tally = RefCell::new(Tally::default());
     let mut runner = TestRunner::new_with_rng(
-        Config { cases: config.cases, failure_persistence: None, ..Config::default() },
+        Config {
+            cases: config.cases,
+            failure_persistence: None,
+            ..Config::default()
+        },
         TestRng::from_seed(RngAlgorithm::ChaCha, &seed_bytes(config.seed)),
     );
     let strategy = proptest::collection::vec(MARGIN..1.0 - MARGIN, dims);
@@ -155,7 +181,10 @@ where
     }
     let continuous = tally.checked + tally.skipped;
     if continuous > 0 && f64::from(tally.checked) < config.min_checked * f64::from(continuous) {
-        return Err(Failure::TooFewJacobianCases { checked: tally.checked, skipped: tally.skipped });
+        return Err(Failure::TooFewJacobianCases {
+            checked: tally.checked,
+            skipped: tally.skipped,
+        });
     }
     Ok(Report {
         cases: config.cases,
@@ -169,7 +198,12 @@ where
 fn seed_bytes(seed: u64) -> [u8; 32] {
     let mut bytes = [0u8; 32];
     for (i, chunk) in bytes.chunks_mut(8).enumerate() {
-        chunk.copy_from_slice(&(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15).wrapping_add(i as u64)).to_le_bytes());
+        chunk.copy_from_slice(
+            &(seed
+                .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                .wrapping_add(i as u64))
+            .to_le_bytes(),
+        );
     }
     bytes
 }
@@ -179,7 +213,7 @@ where
     D: Distribution,
     D::Value: Embed + fmt::Debug,
 {
-    let Some(s) = d.sample(u) else { return None };
+    let s = d.sample(u)?;
     // (a) density mode against the recorded density.
     let evaluated = d.density(&s.value);
     let (r, e) = (s.density.value(), evaluated.value());
@@ -187,7 +221,11 @@ where
         && (r - e).abs() <= config.agreement_tolerance * r.max(e)
         && (r == 0.0) == (e == 0.0);
     if !agree {
-        return Some(Failure::Agreement { u: u.to_vec(), recorded: s.density.to_string(), evaluated: evaluated.to_string() });
+        return Some(Failure::Agreement {
+            u: u.to_vec(),
+            recorded: s.density.to_string(),
+            evaluated: evaluated.to_string(),
+        });
     }
     if s.density.is_zero() {
         return None;
@@ -196,7 +234,10 @@ where
     let (c0, _) = embed(&s.value);
     let scale = c0.iter().fold(1.0f64, |a, x| a.max(x.abs()));
     let inverted = d.invert(&s.value);
-    let back = inverted.as_ref().and_then(|v| d.sample(v)).map(|t| embed(&t.value).0);
+    let back = inverted
+        .as_ref()
+        .and_then(|v| d.sample(v))
+        .map(|t| embed(&t.value).0);
     match back {
         Some(c1) if distance(&c0, &c1) <= 1e-3 * scale => {}
         other => {
@@ -226,5 +267,9 @@ where
     tally.checked += 1;
     let error = (r - expected).abs() / expected;
     tally.max_error = tally.max_error.max(error);
-    (error > config.jacobian_tolerance).then(|| Failure::Jacobian { u: u.to_vec(), expected, got: r })
+    (error > config.jacobian_tolerance).then(|| Failure::Jacobian {
+        u: u.to_vec(),
+        expected,
+        got: r,
+    })
 }

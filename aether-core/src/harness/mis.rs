@@ -16,7 +16,13 @@ pub struct Technique<'s, V> {
 
 impl<V> std::fmt::Debug for Technique<'_, V> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_list().entries(self.steps.iter().map(|(s, r)| (s.name(), if *r { "reversed" } else { "forward" }))).finish()
+        f.debug_list()
+            .entries(
+                self.steps
+                    .iter()
+                    .map(|(s, r)| (s.name(), if *r { "reversed" } else { "forward" })),
+            )
+            .finish()
     }
 }
 
@@ -30,7 +36,9 @@ impl<'s, V: Vertex> Technique<'s, V> {
     /// The empty technique.
     #[must_use]
     pub fn new() -> Self {
-        Technique { steps: SmallVec::new() }
+        Technique {
+            steps: SmallVec::new(),
+        }
     }
 
     /// Appends a step sampled from the camera end.
@@ -69,7 +77,8 @@ impl<'s, V: Vertex> Technique<'s, V> {
                 light.pending_push(s);
             }
         }
-        let complete = camera.sample(rng) == crate::StepKind::Vertex && light.sample(rng) == crate::StepKind::Vertex;
+        let complete = camera.sample(rng) == crate::StepKind::Vertex
+            && light.sample(rng) == crate::StepKind::Vertex;
         complete.then(|| camera.concat(&light.reversed()))
     }
 
@@ -104,28 +113,42 @@ pub fn check_mis<V: Vertex + std::fmt::Debug, R: UniformSource>(
     paths_per_technique: usize,
     rng: &mut R,
 ) -> Result<MisReport, String> {
-    let mut report = MisReport { mean_weights: vec![0.0; techniques.len()], ..MisReport::default() };
+    let mut report = MisReport {
+        mean_weights: vec![0.0; techniques.len()],
+        ..MisReport::default()
+    };
     for (t, technique) in techniques.iter().enumerate() {
         for _ in 0..paths_per_technique {
-            let Some(path) = technique.sample(rng) else { continue };
+            let Some(path) = technique.sample(rng) else {
+                continue;
+            };
             let candidates: Vec<_> = techniques.iter().filter_map(|q| q.assign(&path)).collect();
             if candidates.len() != techniques.len() {
-                return Err(format!("technique {t} produced a path of {} vertices that another technique cannot take", path.len()));
+                return Err(format!(
+                    "technique {t} produced a path of {} vertices that another technique cannot take",
+                    path.len()
+                ));
             }
             let weights = combine(&candidates, heuristic);
             let sum: f64 = weights.iter().sum();
             let direct: Vec<_> = candidates.iter().map(|c| c.pdf_of(&path)).collect();
             if direct[t].is_zero() {
-                return Err(format!("technique {t} sampled a path that its own density calls impossible: {path:?}"));
+                return Err(format!(
+                    "technique {t} sampled a path that its own density calls impossible: {path:?}"
+                ));
             }
             if (sum - 1.0).abs() > 1e-9 {
-                return Err(format!("weights {weights:?} sum to {sum} on a path of technique {t}; densities {direct:?}"));
+                return Err(format!(
+                    "weights {weights:?} sum to {sum} on a path of technique {t}; densities {direct:?}"
+                ));
             }
             for (i, w) in weights.iter().enumerate() {
                 let w_direct = heuristic.weight(&direct, i);
                 let err = (w - w_direct).abs();
                 if err > 1e-9 {
-                    return Err(format!("combine gives weight {w} to technique {i}, direct evaluation {w_direct}"));
+                    return Err(format!(
+                        "combine gives weight {w} to technique {i}, direct evaluation {w_direct}"
+                    ));
                 }
                 report.max_density_error = report.max_density_error.max(err);
                 report.mean_weights[i] += w;

@@ -35,14 +35,16 @@ mod stats;
 
 use std::fmt;
 
-pub use chart::{Categories, Chart, Disk, Grid, Interval, Parameterization, SphereDirections, Square, Triangle};
+pub use chart::{
+    Categories, Chart, Disk, Grid, Interval, Parameterization, SphereDirections, Square, Triangle,
+};
 pub use mis::{MisReport, Technique, check_mis};
 pub use stats::chi_square_p_value;
 
+use crate::Step;
 use crate::distribution::{Distribution, Embed};
 use crate::strategy::{Prefix, Strategy};
 use crate::vertex::Vertex;
-use crate::Step;
 
 /// Settings of a check.
 #[derive(Clone, Debug)]
@@ -106,7 +108,14 @@ impl fmt::Display for Report {
         write!(
             f,
             "{} cases, Jacobian checked {} (skipped {}, max rel. error {:.2e}); χ² = {:.1} with {} dof, p = {:.3}; integral {:.5}",
-            self.cases, self.jacobian_checked, self.jacobian_skipped, self.jacobian_max_error, self.chi_square, self.dof, self.p_value, self.integral
+            self.cases,
+            self.jacobian_checked,
+            self.jacobian_skipped,
+            self.jacobian_max_error,
+            self.chi_square,
+            self.dof,
+            self.p_value,
+            self.integral
         )
     }
 }
@@ -169,11 +178,25 @@ pub enum Failure {
 impl fmt::Display for Failure {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Failure::Agreement { u, recorded, evaluated } => {
-                write!(f, "(a) density mode disagrees with sampling at u = {u:?}: recorded {recorded}, evaluated {evaluated}")
+            Failure::Agreement {
+                u,
+                recorded,
+                evaluated,
+            } => {
+                write!(
+                    f,
+                    "(a) density mode disagrees with sampling at u = {u:?}: recorded {recorded}, evaluated {evaluated}"
+                )
             }
-            Failure::Inversion { u, inverted, distance } => {
-                write!(f, "inversion failed at u = {u:?}: invert gave {inverted:?}, the round trip is {distance:.3e} away")
+            Failure::Inversion {
+                u,
+                inverted,
+                distance,
+            } => {
+                write!(
+                    f,
+                    "inversion failed at u = {u:?}: invert gave {inverted:?}, the round trip is {distance:.3e} away"
+                )
             }
             Failure::Jacobian { u, expected, got } => write!(
                 f,
@@ -181,16 +204,29 @@ impl fmt::Display for Failure {
                 (got - expected).abs() / expected
             ),
             Failure::TooFewJacobianCases { checked, skipped } => {
-                write!(f, "(b) only {checked} cases could be checked, {skipped} were singular or discontinuous")
+                write!(
+                    f,
+                    "(b) only {checked} cases could be checked, {skipped} were singular or discontinuous"
+                )
             }
-            Failure::ChiSquare { statistic, dof, p_value, worst } => {
-                write!(f, "(c) chi-square test failed: χ² = {statistic:.1} with {dof} dof, p = {p_value:.2e}; worst cells (cell, observed, expected):")?;
+            Failure::ChiSquare {
+                statistic,
+                dof,
+                p_value,
+                worst,
+            } => {
+                write!(
+                    f,
+                    "(c) chi-square test failed: χ² = {statistic:.1} with {dof} dof, p = {p_value:.2e}; worst cells (cell, observed, expected):"
+                )?;
                 for (c, o, e) in worst {
                     write!(f, " [{c}: {o} vs {e:.1}]")?;
                 }
                 Ok(())
             }
-            Failure::IntegralAboveOne { integral } => write!(f, "(c) the density integrates to {integral:.6} > 1"),
+            Failure::IntegralAboveOne { integral } => {
+                write!(f, "(c) the density integrates to {integral:.6} > 1")
+            }
         }
     }
 }
@@ -211,7 +247,11 @@ impl std::error::Error for Failure {}
 /// let report = check(&CosineHemisphere, &Grid::new(SphereDirections, 16), &Check::default()).unwrap();
 /// assert!(report.p_value > 0.01);
 /// ```
-pub fn check<D>(distribution: &D, chart: &impl Chart<D::Value>, config: &Check) -> Result<Report, Failure>
+pub fn check<D>(
+    distribution: &D,
+    chart: &impl Chart<D::Value>,
+    config: &Check,
+) -> Result<Report, Failure>
 where
     D: Distribution,
     D::Value: Embed + fmt::Debug,
@@ -223,10 +263,19 @@ where
 
 /// Runs every check on `strategy` conditioned on the vertices `prefix`
 /// (in path order, the last one most recent).
-pub fn check_strategy<V, S>(strategy: &S, prefix: &[V], chart: &impl Chart<Step<V>>, config: &Check) -> Result<Report, Failure>
+pub fn check_strategy<V, S>(
+    strategy: &S,
+    prefix: &[V],
+    chart: &impl Chart<Step<V>>,
+    config: &Check,
+) -> Result<Report, Failure>
 where
     V: Vertex + fmt::Debug,
     S: Strategy<V>,
 {
-    check(&strategy.distribution(Prefix::forward(prefix)), chart, config)
+    check(
+        &strategy.distribution(Prefix::forward(prefix)),
+        chart,
+        config,
+    )
 }

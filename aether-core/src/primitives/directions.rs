@@ -58,7 +58,10 @@ impl Distribution for UniformHemisphere {
         2
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
-        Some(Sample::new(zone_direction(f64::from(u[0]), u[1]), solid_angle(1.0 / (2.0 * PI))))
+        Some(Sample::new(
+            zone_direction(f64::from(u[0]), u[1]),
+            solid_angle(1.0 / (2.0 * PI)),
+        ))
     }
     fn density(&self, w: &Vec3) -> Density {
         solid_angle(if w.z >= 0.0 { 1.0 / (2.0 * PI) } else { 0.0 })
@@ -81,13 +84,19 @@ impl Distribution for UniformSphere {
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
         let z = 1.0 - 2.0 * f64::from(u[0]);
-        Some(Sample::new(zone_direction(z, u[1]), solid_angle(1.0 / (4.0 * PI))))
+        Some(Sample::new(
+            zone_direction(z, u[1]),
+            solid_angle(1.0 / (4.0 * PI)),
+        ))
     }
     fn density(&self, _w: &Vec3) -> Density {
         solid_angle(1.0 / (4.0 * PI))
     }
     fn invert(&self, w: &Vec3) -> Option<Uniforms> {
-        Some(smallvec![below_one((1.0 - w.z) / 2.0), turn_fraction(w.y, w.x)])
+        Some(smallvec![
+            below_one((1.0 - w.z) / 2.0),
+            turn_fraction(w.y, w.x)
+        ])
     }
 }
 
@@ -115,7 +124,9 @@ impl UniformCone {
     #[must_use]
     pub fn new(cos_max: f64) -> Self {
         debug_assert!((-1.0..1.0).contains(&cos_max));
-        UniformCone { one_minus_cos_max: 1.0 - cos_max }
+        UniformCone {
+            one_minus_cos_max: 1.0 - cos_max,
+        }
     }
 
     /// The cone subtended by a sphere of squared radius `r2` seen from
@@ -123,7 +134,9 @@ impl UniformCone {
     #[must_use]
     pub fn subtended(r2: f64, d2: f64) -> Self {
         let sin2 = (r2 / d2).clamp(0.0, 1.0);
-        UniformCone { one_minus_cos_max: sin2 / (1.0 + (1.0 - sin2).sqrt()) }
+        UniformCone {
+            one_minus_cos_max: sin2 / (1.0 + (1.0 - sin2).sqrt()),
+        }
     }
 
     /// cos θ_max.
@@ -146,11 +159,19 @@ impl Distribution for UniformCone {
         let one_minus_cos = f64::from(u[0]) * self.one_minus_cos_max;
         let sin = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
         let phi = 2.0 * PI * f64::from(u[1]);
-        let w = Vec3::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, (1.0 - one_minus_cos) as f32);
+        let w = Vec3::new(
+            (sin * phi.cos()) as f32,
+            (sin * phi.sin()) as f32,
+            (1.0 - one_minus_cos) as f32,
+        );
         Some(Sample::new(w, solid_angle(self.pdf())))
     }
     fn density(&self, w: &Vec3) -> Density {
-        solid_angle(if one_minus_cos(*w) <= self.one_minus_cos_max { self.pdf() } else { 0.0 })
+        solid_angle(if one_minus_cos(*w) <= self.one_minus_cos_max {
+            self.pdf()
+        } else {
+            0.0
+        })
     }
     fn invert(&self, w: &Vec3) -> Option<Uniforms> {
         let u0 = one_minus_cos(*w) / self.one_minus_cos_max;

@@ -26,7 +26,10 @@ impl fmt::Display for DiscreteError {
         match self {
             DiscreteError::Empty => write!(f, "a discrete distribution needs at least one weight"),
             DiscreteError::InvalidWeight { index, value } => {
-                write!(f, "weight {index} is {value}; weights must be finite and non-negative")
+                write!(
+                    f,
+                    "weight {index} is {value}; weights must be finite and non-negative"
+                )
             }
             DiscreteError::ZeroTotal => write!(f, "all weights are zero"),
         }
@@ -63,7 +66,11 @@ impl DiscreteDistribution {
         if weights.is_empty() {
             return Err(DiscreteError::Empty);
         }
-        if let Some((index, &value)) = weights.iter().enumerate().find(|(_, w)| !(w.is_finite() && **w >= 0.0)) {
+        if let Some((index, &value)) = weights
+            .iter()
+            .enumerate()
+            .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
+        {
             return Err(DiscreteError::InvalidWeight { index, value });
         }
         let total: f64 = weights.iter().sum();
@@ -105,7 +112,9 @@ impl DiscreteDistribution {
     pub fn select(&self, u: f32) -> (usize, f32) {
         let u64 = f64::from(u);
         // First i with cdf[i + 1] > u: outcomes of zero probability are skipped.
-        let i = self.cdf[1..].partition_point(|&c| c <= u64).min(self.len() - 1);
+        let i = self.cdf[1..]
+            .partition_point(|&c| c <= u64)
+            .min(self.len() - 1);
         let remapped = (u64 - self.cdf[i]) / self.pmf[i];
         (i, below_one(remapped.max(0.0) as f32))
     }
@@ -165,6 +174,9 @@ mod tests {
             DiscreteDistribution::new(&[1.0, f64::NAN]),
             Err(DiscreteError::InvalidWeight { index: 1, .. })
         ));
-        assert_eq!(DiscreteDistribution::new(&[0.0]), Err(DiscreteError::ZeroTotal));
+        assert_eq!(
+            DiscreteDistribution::new(&[0.0]),
+            Err(DiscreteError::ZeroTotal)
+        );
     }
 }

@@ -27,7 +27,11 @@ impl GgxVisibleNormals {
     #[must_use]
     pub fn new(ax: f32, ay: f32, wi: Vec3) -> Self {
         debug_assert!(ax > 0.0 && ay > 0.0 && wi.z > 0.0);
-        GgxVisibleNormals { ax: f64::from(ax), ay: f64::from(ay), wi: wi.as_dvec3().normalize() }
+        GgxVisibleNormals {
+            ax: f64::from(ax),
+            ay: f64::from(ay),
+            wi: wi.as_dvec3().normalize(),
+        }
     }
 
     /// The GGX normal distribution D(m).
@@ -59,7 +63,11 @@ impl GgxVisibleNormals {
     fn stretched_frame(&self) -> (DVec3, DVec3, DVec3) {
         let vh = DVec3::new(self.ax * self.wi.x, self.ay * self.wi.y, self.wi.z).normalize();
         let len2 = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if len2 > 0.0 { DVec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { DVec3::X };
+        let t1 = if len2 > 0.0 {
+            DVec3::new(-vh.y, vh.x, 0.0) / len2.sqrt()
+        } else {
+            DVec3::X
+        };
         let t2 = vh.cross(t1);
         (vh, t1, t2)
     }
@@ -96,7 +104,8 @@ impl Distribution for GgxVisibleNormals {
         let s = 0.5 * (1.0 + vh.z);
         let t2 = (nh.dot(t2v) - (1.0 - s) * (1.0 - t1 * t1).max(0.0).sqrt()) / s;
         let r2 = t1 * t1 + t2 * t2;
-        (r2 <= 1.0 + 1e-6).then(|| smallvec![below_one(r2 as f32), turn_fraction(t2 as f32, t1 as f32)])
+        (r2 <= 1.0 + 1e-6)
+            .then(|| smallvec![below_one(r2 as f32), turn_fraction(t2 as f32, t1 as f32)])
     }
 }
 
@@ -115,7 +124,9 @@ impl BeckmannNormals {
     #[must_use]
     pub fn new(alpha: f32) -> Self {
         debug_assert!(alpha > 0.0);
-        BeckmannNormals { alpha: f64::from(alpha) }
+        BeckmannNormals {
+            alpha: f64::from(alpha),
+        }
     }
 
     /// The Beckmann normal distribution D(m).

@@ -37,6 +37,10 @@ use std::f64::consts::PI;
 #[inline]
 pub(crate) fn turn_fraction(y: f32, x: f32) -> f32 {
     let phi = f64::from(y).atan2(f64::from(x));
-    let t = if phi < 0.0 { phi / (2.0 * PI) + 1.0 } else { phi / (2.0 * PI) };
+    let t = if phi < 0.0 {
+        phi / (2.0 * PI) + 1.0
+    } else {
+        phi / (2.0 * PI)
+    };
     crate::distribution::below_one(t as f32)
 }

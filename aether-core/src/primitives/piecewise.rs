@@ -16,7 +16,9 @@ pub struct PiecewiseConstant1D {
 impl PiecewiseConstant1D {
     /// Cells with the given non-negative weights.
     pub fn new(weights: &[f64]) -> Result<Self, DiscreteError> {
-        Ok(PiecewiseConstant1D { cells: DiscreteDistribution::new(weights)? })
+        Ok(PiecewiseConstant1D {
+            cells: DiscreteDistribution::new(weights)?,
+        })
     }
 
     fn cell_density(&self, i: usize) -> f64 {
@@ -24,7 +26,9 @@ impl PiecewiseConstant1D {
     }
 
     fn cell_of(&self, x: f32) -> Option<usize> {
-        (0.0..1.0).contains(&x).then(|| ((x * self.cells.len() as f32) as usize).min(self.cells.len() - 1))
+        (0.0..1.0)
+            .contains(&x)
+            .then(|| ((x * self.cells.len() as f32) as usize).min(self.cells.len() - 1))
     }
 }
 
@@ -36,10 +40,16 @@ impl Distribution for PiecewiseConstant1D {
     fn sample(&self, u: &[f32]) -> Option<Sample<f32>> {
         let (i, rest) = self.cells.select(u[0]);
         let x = below_one((i as f32 + rest) / self.cells.len() as f32);
-        Some(Sample::new(x, Density::new(self.cell_density(i), Measure::Length)))
+        Some(Sample::new(
+            x,
+            Density::new(self.cell_density(i), Measure::Length),
+        ))
     }
     fn density(&self, x: &f32) -> Density {
-        Density::new(self.cell_of(*x).map_or(0.0, |i| self.cell_density(i)), Measure::Length)
+        Density::new(
+            self.cell_of(*x).map_or(0.0, |i| self.cell_density(i)),
+            Measure::Length,
+        )
     }
     fn invert(&self, x: &f32) -> Option<Uniforms> {
         let i = self.cell_of(*x)?;
@@ -74,9 +84,19 @@ impl PiecewiseConstant2D {
         let columns = values
             .chunks(width)
             .zip(&row_sums)
-            .map(|(r, &s)| if s > 0.0 { PiecewiseConstant1D::new(r).map(Some) } else { Ok(None) })
+            .map(|(r, &s)| {
+                if s > 0.0 {
+                    PiecewiseConstant1D::new(r).map(Some)
+                } else {
+                    Ok(None)
+                }
+            })
             .collect::<Result<_, _>>()?;
-        Ok(PiecewiseConstant2D { rows, columns, width })
+        Ok(PiecewiseConstant2D {
+            rows,
+            columns,
+            width,
+        })
     }
 
     /// Table width (cells along u).
@@ -100,12 +120,18 @@ impl Distribution for PiecewiseConstant2D {
     }
     fn density(&self, p: &Vec2) -> Density {
         let pv = self.rows.density(&p.y);
-        let pu = self.rows.cell_of(p.y).and_then(|r| self.columns[r].as_ref()).map_or(0.0, |c| c.density(&p.x).value());
+        let pu = self
+            .rows
+            .cell_of(p.y)
+            .and_then(|r| self.columns[r].as_ref())
+            .map_or(0.0, |c| c.density(&p.x).value());
         Density::new(pv.value() * pu, Measure::Area)
     }
     fn invert(&self, p: &Vec2) -> Option<Uniforms> {
         let uv = self.rows.invert(&p.y)?;
-        let uu = self.columns[self.rows.cell_of(p.y)?].as_ref()?.invert(&p.x)?;
+        let uu = self.columns[self.rows.cell_of(p.y)?]
+            .as_ref()?
+            .invert(&p.x)?;
         Some(smallvec![uu[0], uv[0]])
     }
 }

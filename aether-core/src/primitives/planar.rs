@@ -64,7 +64,10 @@ impl UniformDisk {
             let t = theta + PI;
             (-r * (2.0 - t / quarter), -r)
         };
-        let u = [below_one(((a + 1.0) / 2.0) as f32), below_one(((b + 1.0) / 2.0) as f32)];
+        let u = [
+            below_one(((a + 1.0) / 2.0) as f32),
+            below_one(((b + 1.0) / 2.0) as f32),
+        ];
         in_unit_cube(&u).then_some(u)
     }
 
@@ -80,10 +83,17 @@ impl Distribution for UniformDisk {
         2
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec2>> {
-        Some(Sample::new(self.radius * Self::concentric([u[0], u[1]]), self.pdf()))
+        Some(Sample::new(
+            self.radius * Self::concentric([u[0], u[1]]),
+            self.pdf(),
+        ))
     }
     fn density(&self, p: &Vec2) -> Density {
-        if p.length() <= self.radius { self.pdf() } else { Density::zero(Measure::Area) }
+        if p.length() <= self.radius {
+            self.pdf()
+        } else {
+            Density::zero(Measure::Area)
+        }
     }
     fn invert(&self, p: &Vec2) -> Option<Uniforms> {
         Self::concentric_inverse(*p / self.radius).map(|u| smallvec![u[0], u[1]])
@@ -169,7 +179,10 @@ impl Distribution for UniformTriangle {
         let (b0, b1) = self.barycentrics(*x)?;
         let su = (1.0 - b0).clamp(0.0, 1.0);
         let u1 = if su > 0.0 { b1 / su } else { 0.5 };
-        Some(smallvec![below_one((su * su) as f32), below_one(u1.clamp(0.0, 1.0) as f32)])
+        Some(smallvec![
+            below_one((su * su) as f32),
+            below_one(u1.clamp(0.0, 1.0) as f32)
+        ])
     }
 }
 
@@ -184,7 +197,10 @@ mod tests {
                 let u = [i as f32 / 20.0, j as f32 / 20.0];
                 let p = UniformDisk::concentric(u);
                 let v = UniformDisk::concentric_inverse(p).unwrap();
-                assert!((v[0] - u[0]).abs() < 1e-5 && (v[1] - u[1]).abs() < 1e-5, "{u:?} -> {p} -> {v:?}");
+                assert!(
+                    (v[0] - u[0]).abs() < 1e-5 && (v[1] - u[1]).abs() < 1e-5,
+                    "{u:?} -> {p} -> {v:?}"
+                );
             }
         }
     }

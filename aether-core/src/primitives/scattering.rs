@@ -50,7 +50,9 @@ impl<D: Distribution<Value = Vec3>> Distribution for Reflect<D> {
     }
     fn invert(&self, wo: &Vec3) -> Option<Uniforms> {
         let h = self.wi + *wo;
-        (h.length_squared() > 1e-12).then(|| self.normals.invert(&h.normalize())).flatten()
+        (h.length_squared() > 1e-12)
+            .then(|| self.normals.invert(&h.normalize()))
+            .flatten()
     }
 }
 
@@ -70,7 +72,10 @@ pub struct Refract<D> {
 impl<D: Distribution<Value = Vec3>> Refract<D> {
     /// Refracts unit `wi` (pointing away from the surface) with relative index `eta`.
     pub fn new(wi: Vec3, eta: f32, normals: D) -> Self {
-        debug_assert!(eta > 0.0 && eta != 1.0, "refraction needs a relative index other than 1");
+        debug_assert!(
+            eta > 0.0 && eta != 1.0,
+            "refraction needs a relative index other than 1"
+        );
         Refract { wi, eta, normals }
     }
 
@@ -101,16 +106,23 @@ impl<D: Distribution<Value = Vec3>> Distribution for Refract<D> {
             return None;
         }
         let wo = (-wi / eta + (c / eta - (1.0 - sin2_t).sqrt()) * md).normalize();
-        Some(Sample::new(wo.as_vec3(), m.density.scale(self.jacobian(wo, md))))
+        Some(Sample::new(
+            wo.as_vec3(),
+            m.density.scale(self.jacobian(wo, md)),
+        ))
     }
     fn density(&self, wo: &Vec3) -> Density {
         match self.half_vector(*wo) {
-            Some(m) => self.normals.density(&m.as_vec3()).scale(self.jacobian(wo.as_dvec3(), m)),
+            Some(m) => self
+                .normals
+                .density(&m.as_vec3())
+                .scale(self.jacobian(wo.as_dvec3(), m)),
             None => Density::zero(Measure::SolidAngle),
         }
     }
     fn invert(&self, wo: &Vec3) -> Option<Uniforms> {
-        self.half_vector(*wo).and_then(|m| self.normals.invert(&m.as_vec3()))
+        self.half_vector(*wo)
+            .and_then(|m| self.normals.invert(&m.as_vec3()))
     }
 }
 
@@ -160,7 +172,10 @@ impl Distribution for DiracDirection {
         0
     }
     fn sample(&self, _u: &[f32]) -> Option<Sample<Vec3>> {
-        Some(Sample::new(self.direction, Density::dirac(self.mass, Measure::SolidAngle)))
+        Some(Sample::new(
+            self.direction,
+            Density::dirac(self.mass, Measure::SolidAngle),
+        ))
     }
     fn density(&self, w: &Vec3) -> Density {
         let cos = self.direction.as_dvec3().dot(w.as_dvec3().normalize());

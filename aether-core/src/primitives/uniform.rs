@@ -42,10 +42,16 @@ impl Distribution for UniformInterval {
         Some(Sample::new(self.a + u[0] * (self.b - self.a), self.pdf()))
     }
     fn density(&self, x: &f32) -> Density {
-        if (self.a..self.b).contains(x) { self.pdf() } else { Density::zero(Measure::Length) }
+        if (self.a..self.b).contains(x) {
+            self.pdf()
+        } else {
+            Density::zero(Measure::Length)
+        }
     }
     fn invert(&self, x: &f32) -> Option<Uniforms> {
-        (self.a..self.b).contains(x).then(|| smallvec![below_one((x - self.a) / (self.b - self.a))])
+        (self.a..self.b)
+            .contains(x)
+            .then(|| smallvec![below_one((x - self.a) / (self.b - self.a))])
     }
 }
 
@@ -61,7 +67,10 @@ impl Distribution for UniformSquare {
         2
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec2>> {
-        Some(Sample::new(Vec2::new(u[0], u[1]), Density::new(1.0, Measure::Area)))
+        Some(Sample::new(
+            Vec2::new(u[0], u[1]),
+            Density::new(1.0, Measure::Area),
+        ))
     }
     fn density(&self, p: &Vec2) -> Density {
         let inside = (0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y);

@@ -1,0 +1,132 @@
+//! The harness must be able to fail: deliberately wrong primitives.
+
+use aether_core::harness::{Check, Failure, Grid, SphereDirections, check};
+use aether_core::primitives::{CosineHemisphere, DiscreteDistribution, UniformHemisphere};
+use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
+use glam::Vec3;
+
+/// Cosine-weighted directions whose Jacobian is wrong by 5 % in a way
+/// sampling and density mode agree on: only the Jacobian check sees it.
+struct WrongJacobian;
+
+impl Distribution for WrongJacobian {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        let s = CosineHemisphere.sample(u)?;
+        Some(Sample::new(s.value, self.density(&s.value)))
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        CosineHemisphere
+            .density(w)
+            .scale(1.0 + 0.05 * f64::from(w.x).abs())
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        CosineHemisphere.invert(w)
+    }
+}
+
+/// Records the right density while sampling, but evaluates another.
+struct DisagreeingModes;
+
+impl Distribution for DisagreeingModes {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        CosineHemisphere.sample(u)
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        UniformHemisphere.density(w)
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        CosineHemisphere.invert(w)
+    }
+}
+
+/// An inverse that returns the wrong uniforms.
+struct WrongInverse;
+
+impl Distribution for WrongInverse {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        CosineHemisphere.sample(u)
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        CosineHemisphere.density(w)
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        CosineHemisphere.invert(&Vec3::new(w.y, w.x, w.z))
+    }
+}
+
+/// A mixture whose density forgets one lobe. Its modes agree and the
+/// Jacobian check does not apply to overlapping lobes: only the histogram
+/// can see it.
+struct ForgetfulMixture(DiscreteDistribution);
+
+impl Distribution for ForgetfulMixture {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        let s = self.mixture().sample(u)?;
+        Some(Sample::new(s.value, self.density(&s.value)))
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        CosineHemisphere.density(w).scale(self.0.probability(0))
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        self.mixture().invert(w)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        true
+    }
+}
+
+impl ForgetfulMixture {
+    fn mixture(&self) -> impl Distribution<Value = Vec3> + '_ {
+        Mixture::new(&self.0, 2, |i| {
+            if i == 0 {
+                Either::Left(CosineHemisphere)
+            } else {
+                Either::Right(UniformHemisphere)
+            }
+        })
+    }
+}
+
+fn run(d: &impl Distribution<Value = Vec3>) -> Failure {
+    let failure = check(d, &Grid::new(SphereDirections, 16), &Check::default())
+        .expect_err("the harness must reject this distribution");
+    println!("{failure}");
+    failure
+}
+
+#[test]
+fn wrong_jacobian_fails_the_jacobian_check() {
+    assert!(matches!(run(&WrongJacobian), Failure::Jacobian { .. }));
+}
+
+#[test]
+fn disagreeing_modes_fail_the_agreement_check() {
+    assert!(matches!(run(&DisagreeingModes), Failure::Agreement { .. }));
+}
+
+#[test]
+fn wrong_inverse_fails_the_inversion_check() {
+    assert!(matches!(run(&WrongInverse), Failure::Inversion { .. }));
+}
+
+#[test]
+fn forgotten_lobe_fails_the_chi_square_test() {
+    let d = ForgetfulMixture(DiscreteDistribution::new(&[0.7, 0.3]).unwrap());
+    assert!(matches!(run(&d), Failure::ChiSquare { .. }));
+}
