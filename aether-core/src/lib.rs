@@ -16,7 +16,7 @@
 //!   looked up from the value), [`Mixture`] (overlapping lobes, summed),
 //!   [`RussianRoulette`] (termination as an event with probability),
 //!   [`Either`], [`Intersect`] (solid angle → area at the hit point),
-//!   [`OnSurface`] and [`DiracPoint`].
+//!   [`OnSurface`], [`DiracPoint`] and [`Segment`] (two vertices through a portal).
 //! * Measures: [`Density`] carries its [`Measure`] and Dirac order; a path's
 //!   [`PathDensity`] compares by Dirac order first.
 //! * Paths: [`Strategy`], [`RandomSequence`] (append, sample, slice, concat,
@@ -56,7 +56,7 @@ pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
 };
-pub use surface::{DiracPoint, Intersect, OnSurface};
+pub use surface::{DiracPoint, Intersect, OnSurface, Segment};
 pub use vertex::{Geometry, RayCaster, Vertex};
 
 #[doc = include_str!("../../README.md")]

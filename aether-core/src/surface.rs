@@ -214,3 +214,139 @@ impl<V: Vertex> Distribution for DiracPoint<V> {
         (!self.density(v).is_zero()).then(Uniforms::new)
     }
 }
+
+/// The density of a line (a point by area and a direction by solid angle)
+/// as a density of its two end points in the product of their areas.
+fn line_to_area_product(point: Density, direction: Density, factor: f64) -> Density {
+    let dirac = Density::dirac(1.0, Measure::Discrete);
+    let scaled = point.convert(direction.value() * factor, Measure::AreaProduct);
+    if direction.is_dirac() {
+        scaled * dirac
+    } else {
+        scaled
+    }
+}
+
+/// A segment through a portal: a point y sampled on the portal (by area)
+/// and a direction ω (by solid angle); rays cast both ways from y give the
+/// two vertices (x_a behind, x_b ahead), in path order.
+///
+/// Density, in the product of the two vertices' area measures:
+/// p(y) p(ω) |cos θ_a| |cos θ_b| / (|cos θ_y| ‖x_a − x_b‖²), the change from
+/// the line measure |cos θ_y| dA(y) dω to dA(x_a) dA(x_b). In density mode y
+/// is where the line through the two vertices crosses the portal plane.
+/// Vertices at infinity and isolated points have density zero.
+pub struct Segment<P, D, F, R> {
+    points: P,
+    directions: D,
+    plane: (Vec3, Vec3),
+    at: F,
+    scene: R,
+}
+
+impl<P, D, F, R> std::fmt::Debug for Segment<P, D, F, R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Segment")
+            .field("plane", &self.plane)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<V, P, D, F, R> Segment<P, D, F, R>
+where
+    V: Vertex,
+    P: Distribution<Value = Vec3>,
+    D: Distribution<Value = Vec3>,
+    F: Fn(Vec3) -> V,
+    R: RayCaster<V>,
+{
+    /// Points from `points` on the portal plane through `origin` with unit
+    /// `normal`, directions from `directions`; `at(y)` is the vertex rays
+    /// leave from.
+    pub fn new(points: P, directions: D, origin: Vec3, normal: Vec3, at: F, scene: R) -> Self {
+        Segment {
+            points,
+            directions,
+            plane: (origin, normal),
+            at,
+            scene,
+        }
+    }
+
+    /// y and ω for a pair of vertices, with the line-measure factor.
+    fn line(&self, a: &V, b: &V) -> Option<(Vec3, Vec3, f64)> {
+        let (Geometry::Surface { normal: na }, Geometry::Surface { normal: nb }) =
+            (a.geometry(), b.geometry())
+        else {
+            return None;
+        };
+        let (pa, pb) = (a.position().as_dvec3(), b.position().as_dvec3());
+        let d = pb - pa;
+        let r2 = d.length_squared();
+        let w = d / r2.sqrt();
+        let (o, n) = (self.plane.0.as_dvec3(), self.plane.1.as_dvec3());
+        let cos_y = n.dot(w);
+        if cos_y == 0.0 || r2 == 0.0 {
+            return None;
+        }
+        let t = (o - pa).dot(n) / cos_y;
+        if !(0.0..=r2.sqrt()).contains(&t) {
+            return None;
+        }
+        let y = pa + t * w;
+        let factor = na.as_dvec3().dot(w).abs() * nb.as_dvec3().dot(w).abs() / (cos_y.abs() * r2);
+        Some((y.as_vec3(), w.as_vec3(), factor))
+    }
+}
+
+impl<V, P, D, F, R> Distribution for Segment<P, D, F, R>
+where
+    V: Vertex,
+    P: Distribution<Value = Vec3>,
+    D: Distribution<Value = Vec3>,
+    F: Fn(Vec3) -> V,
+    R: RayCaster<V>,
+{
+    type Value = Step<(V, V)>;
+    fn dims(&self) -> usize {
+        self.points.dims() + self.directions.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Step<(V, V)>>> {
+        let k = self.points.dims();
+        let y = self.points.sample(&u[..k])?;
+        let w = self.directions.sample(&u[k..])?;
+        let from = (self.at)(y.value);
+        let (Some(b), Some(a)) = (
+            self.scene.cast(&from, w.value),
+            self.scene.cast(&from, -w.value),
+        ) else {
+            return Some(Sample::new(
+                Step::Missed,
+                Density::zero(Measure::AreaProduct),
+            ));
+        };
+        let density = match self.line(&a, &b) {
+            Some((_, _, factor)) => line_to_area_product(y.density, w.density, factor),
+            None => Density::zero(Measure::AreaProduct),
+        };
+        Some(Sample::new(Step::Vertex((a, b)), density))
+    }
+    fn density(&self, v: &Step<(V, V)>) -> Density {
+        let Step::Vertex((a, b)) = v else {
+            return Density::zero(Measure::AreaProduct);
+        };
+        match self.line(a, b) {
+            Some((y, w, factor)) => {
+                line_to_area_product(self.points.density(&y), self.directions.density(&w), factor)
+            }
+            None => Density::zero(Measure::AreaProduct),
+        }
+    }
+    fn invert(&self, v: &Step<(V, V)>) -> Option<Uniforms> {
+        let Step::Vertex((a, b)) = v else { return None };
+        let (y, w, _) = self.line(a, b)?;
+        let mut u = self.points.invert(&y)?;
+        u.extend(self.directions.invert(&w)?);
+        Some(u)
+    }
+}

@@ -12,10 +12,10 @@ use crate::distribution::{Coords, Distribution, Embed};
 /// singular at the boundary of the square (poles, cone rims).
 const MARGIN: f32 = 0.02;
 /// Finite-difference step in uniform space.
-const STEP: f32 = 2e-3;
+const STEP: f32 = 4e-3;
 /// Relative disagreement of the two step sizes beyond which a case counts
 /// as singular.
-const SINGULAR: f64 = 1e-2;
+const SINGULAR: f64 = 2e-3;
 
 fn embed<T: Embed>(v: &T) -> (Coords, usize) {
     let mut c = Coords::new();

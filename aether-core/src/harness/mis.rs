@@ -62,6 +62,13 @@ impl<'s, V: Vertex> Technique<'s, V> {
         self
     }
 
+    /// Appends a two-vertex step sampled from the light end.
+    #[must_use]
+    pub fn reversed_pair(mut self, s: &'s dyn DynPairStrategy<V>) -> Self {
+        self.steps.push((StrategyRef::Two(s), true));
+        self
+    }
+
     /// Samples a path: the forward steps from the start, the reversed
     /// steps from the end (last first), joined. `None` if a step failed.
     pub fn sample<R: UniformSource>(&self, rng: &mut R) -> Option<RandomSequence<'s, V>> {
