@@ -59,6 +59,42 @@ where
     (sample, density)
 }
 
+type Strategies<'s> = (
+    &'s CameraPoint,
+    &'s LookDown<'s>,
+    &'s Bounce<'s>,
+    &'s LightSample<'s>,
+);
+
+/// Samples both subpaths of a 5-vertex BDPT sample and builds its (s, t) candidates.
+fn build<'s>(
+    strategies: Strategies<'s>,
+    rng: &mut Pcg32,
+    candidates: &mut SmallVec<[RandomSequence<'s, TestVertex>; 8]>,
+) {
+    let (camera, look, bounce, light) = strategies;
+    let mut cam = RandomSequence::new();
+    cam.append(camera)
+        .append(look)
+        .append(bounce)
+        .append(bounce)
+        .append(bounce);
+    cam.sample(rng);
+    let mut lig = RandomSequence::new();
+    lig.append(light)
+        .append(bounce)
+        .append(bounce)
+        .append(bounce)
+        .append(bounce);
+    lig.sample(rng);
+    candidates.clear();
+    for s in 0..=5usize {
+        if s <= cam.len() && 5 - s <= lig.len() {
+            candidates.push(cam.slice(0..s).concat(&lig.slice(0..5 - s).reversed()));
+        }
+    }
+}
+
 fn main() {
     println!(
         "{:<34} {:>8} {:>10} {:>8}",
@@ -153,34 +189,34 @@ fn main() {
         }
         black_box(p);
     });
-    let mut candidates: SmallVec<[RandomSequence<'_, TestVertex>; 8]> = SmallVec::new();
-    let bdpt = time(N / 4, |_| {
-        let mut cam = RandomSequence::new();
-        cam.append(&camera)
-            .append(&look)
-            .append(&bounce)
-            .append(&bounce)
-            .append(&bounce);
-        cam.sample(&mut rng);
-        let mut lig = RandomSequence::new();
-        lig.append(&light)
-            .append(&bounce)
-            .append(&bounce)
-            .append(&bounce)
-            .append(&bounce);
-        lig.sample(&mut rng);
-        candidates.clear();
-        for s in 0..=5usize {
-            if s <= cam.len() && 5 - s <= lig.len() {
-                candidates.push(cam.slice(0..s).concat(&lig.slice(0..5 - s).reversed()));
+    // Sampling: both subpaths of a 5-vertex BDPT sample and its 6 (s, t)
+    // candidates. Density evaluation: their combine, which evaluates every
+    // candidate's vertices under every candidate's strategies.
+    let strategies = (&camera, &look, &bounce, &light);
+    let mut candidates = SmallVec::new();
+    let bdpt_sample = time(N / 4, |_| {
+        build(strategies, &mut rng, &mut candidates);
+        black_box(&candidates);
+    });
+    let sets: Vec<SmallVec<[RandomSequence<'_, TestVertex>; 8]>> = (0..256)
+        .map(|_| {
+            let mut c = SmallVec::new();
+            while c.len() < 6 {
+                build(strategies, &mut rng, &mut c);
             }
-        }
-        black_box(combine(&candidates, Heuristic::POWER));
+            c
+        })
+        .collect();
+    let bdpt_combine = time(N / 4, |i| {
+        black_box(combine(&sets[i % sets.len()], Heuristic::POWER));
     });
     println!();
     println!(
         "5-vertex camera path: sample {sample:.0} ns (with ray casts), density from scratch {density:.0} ns, ratio {:.2}",
         density / sample
     );
-    println!("5-vertex BDPT sample: both subpaths, 6 candidates and their combine: {bdpt:.0} ns");
+    println!(
+        "5-vertex BDPT sample: subpaths and 6 candidates {bdpt_sample:.0} ns, their combine {bdpt_combine:.0} ns, ratio {:.2}",
+        bdpt_combine / bdpt_sample
+    );
 }

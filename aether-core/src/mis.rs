@@ -243,6 +243,11 @@ fn combine_with<V: Vertex>(
             continue;
         }
         densities.clear();
+        // The factor in the running product for the step starting at each
+        // position, so that a step leaving the product is divided out
+        // without being evaluated again.
+        let mut current: SmallVec<[Density; 16]> =
+            SmallVec::from_elem(Density::zero(Measure::Area), x.len());
         let mut running: Option<PathDensity> = None;
         for j in 0..m {
             if candidates[j].technique_len() != x.len() {
@@ -250,18 +255,33 @@ fn combine_with<V: Vertex>(
                 running = None;
                 continue;
             }
-            let p = match running {
-                Some(p) if j > 0 => {
-                    let (a, b, c, d) = diffs[j - 1];
-                    let added = spans[a as usize..b as usize].iter().map(span_of);
-                    let removed = spans[c as usize..d as usize].iter().map(span_of);
-                    let p = removed.fold(p, |p, s| p.divided_by(x.factor(&s, Some(cache))));
-                    added.fold(p, |p, s| p.times(x.factor(&s, Some(cache))))
-                }
-                _ => steps[j]
-                    .iter()
-                    .fold(PathDensity::ONE, |p, s| p.times(x.factor(s, Some(cache)))),
+            let mut p = match running {
+                Some(p) if j > 0 => p,
+                _ => PathDensity::ONE,
             };
+            let (added, removed) = match running {
+                Some(_) if j > 0 => {
+                    let (a, b, c, d) = diffs[j - 1];
+                    (
+                        &spans[a as usize..b as usize],
+                        &spans[c as usize..d as usize],
+                    )
+                }
+                _ => (&[][..], &[][..]),
+            };
+            for s in removed.iter().map(span_of) {
+                p = p.divided_by(current[s.start]);
+            }
+            let fresh = running.is_none() || j == 0;
+            let entering = added
+                .iter()
+                .map(span_of)
+                .chain(steps[j].iter().copied().filter(|_| fresh));
+            for s in entering {
+                let f = x.factor(&s, Some(cache));
+                current[s.start] = f;
+                p = p.times(f);
+            }
             running = Some(p);
             densities.push(p);
         }

@@ -109,6 +109,33 @@ pub(crate) struct Span<'s, V> {
     pub(crate) strategy: Option<StrategyRef<'s, V>>,
     pub(crate) reversed: bool,
     pub(crate) fixed_id: u64,
+    /// The strategy's memory and identity, read once rather than per factor.
+    memory: usize,
+    identity: (usize, usize),
+}
+
+impl<'s, V> Span<'s, V> {
+    fn new(
+        start: usize,
+        arity: usize,
+        strategy: Option<StrategyRef<'s, V>>,
+        reversed: bool,
+        fixed_id: u64,
+    ) -> Self {
+        let (memory, identity) = match strategy {
+            Some(s) => (s.memory(), (s.address(), s.name().as_ptr() as usize)),
+            None => (0, (0, 0)),
+        };
+        Span {
+            start,
+            arity,
+            strategy,
+            reversed,
+            fixed_id,
+            memory,
+            identity,
+        }
+    }
 }
 
 impl<V> Clone for Span<'_, V> {
@@ -121,7 +148,7 @@ impl<V> Copy for Span<'_, V> {}
 impl<V> PartialEq for Span<'_, V> {
     fn eq(&self, other: &Self) -> bool {
         let same_strategy = match (self.strategy, other.strategy) {
-            (Some(a), Some(b)) => a.same(&b),
+            (Some(_), Some(_)) => self.identity == other.identity,
             (None, None) => self.fixed_id == other.fixed_id,
             _ => false,
         };
@@ -305,14 +332,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 recorded: None,
             });
         }
-        let span = Span {
-            start,
-            arity,
-            strategy: Some(strategy),
-            reversed: false,
-            fixed_id: 0,
-        };
-        if let Some(key) = self.key(&span, strategy) {
+        let span = Span::new(start, arity, Some(strategy), false, 0);
+        if let Some(key) = self.key(&span) {
             self.slots[start].recorded = Some((key, density));
         }
         StepKind::Vertex
@@ -477,25 +498,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let mut k = 0;
         let sampled = std::iter::from_fn(move || {
             let slot = self.slots.get(k)?;
-            let span = Span {
-                start: k,
-                arity: usize::from(slot.arity),
-                strategy: slot.strategy,
-                reversed: slot.reversed,
-                fixed_id: slot.id,
-            };
+            let span = Span::new(
+                k,
+                usize::from(slot.arity),
+                slot.strategy,
+                slot.reversed,
+                slot.id,
+            );
             k += span.arity;
             Some(span)
         });
         let mut start = self.len();
         let unsampled = self.unsampled.iter().map(move |s| {
-            let span = Span {
-                start,
-                arity: s.arity(),
-                strategy: Some(*s),
-                reversed: false,
-                fixed_id: 0,
-            };
+            let span = Span::new(start, s.arity(), Some(*s), false, 0);
             start += span.arity;
             span
         });
@@ -504,8 +519,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// The cache key of `span`'s density factor on this path, if the
     /// strategy's memory is short enough to cache.
-    fn key(&self, span: &Span<'s, V>, strategy: StrategyRef<'s, V>) -> Option<FactorKey> {
-        let memory = strategy.memory();
+    fn key(&self, span: &Span<'s, V>) -> Option<FactorKey> {
+        let memory = span.memory;
         if memory > 2 {
             return None;
         }
@@ -530,8 +545,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             span.start
         };
         Some(FactorKey {
-            strategy: strategy.address(),
-            kind: strategy.name().as_ptr() as usize,
+            strategy: span.identity.0,
+            kind: span.identity.1,
             prefix_len: prefix_len as u32,
             targets,
             cond,
@@ -553,7 +568,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 Density::zero(Measure::Area)
             };
         };
-        let key = self.key(span, strategy);
+        let key = self.key(span);
         if let Some(key) = key {
             let first = (span.start..end)
                 .find(|&k| self.slots[k].part == 0)
