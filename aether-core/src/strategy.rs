@@ -320,11 +320,6 @@ impl<V> StrategyRef<'_, V> {
         }
     }
 
-    /// True if both refer to the same strategy object of the same type.
-    pub(crate) fn same(&self, other: &Self) -> bool {
-        self.address() == other.address() && std::ptr::eq(self.name(), other.name())
-    }
-
     pub(crate) fn sample_step(
         &self,
         prefix: Prefix<'_, V>,
