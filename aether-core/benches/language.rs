@@ -8,7 +8,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use aether_core::primitives::*;
-use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene, TestVertex};
+use aether_core::testing::{BidirectionalFixture, TestScene, TestVertex};
 use aether_core::{
     Distribution, Frame, Heuristic, InFrame, Pcg32, Prefix, RandomSequence, UniformSource, combine,
 };
@@ -57,42 +57,6 @@ where
         density / sample
     );
     (sample, density)
-}
-
-type Strategies<'s> = (
-    &'s CameraPoint,
-    &'s LookDown<'s>,
-    &'s Bounce<'s>,
-    &'s LightSample<'s>,
-);
-
-/// Samples both subpaths of a 5-vertex BDPT sample and builds its (s, t) candidates.
-fn build<'s>(
-    strategies: Strategies<'s>,
-    rng: &mut Pcg32,
-    candidates: &mut SmallVec<[RandomSequence<'s, TestVertex>; 8]>,
-) {
-    let (camera, look, bounce, light) = strategies;
-    let mut cam = RandomSequence::new();
-    cam.append(camera)
-        .append(look)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce);
-    cam.sample(rng);
-    let mut lig = RandomSequence::new();
-    lig.append(light)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce);
-    lig.sample(rng);
-    candidates.clear();
-    for s in 0..=5usize {
-        if s <= cam.len() && 5 - s <= lig.len() {
-            candidates.push(cam.slice(0..s).concat(&lig.slice(0..5 - s).reversed()));
-        }
-    }
 }
 
 fn main() {
@@ -149,38 +113,34 @@ fn main() {
     // A 5-vertex path: camera subpath sampled, its density evaluated again
     // from scratch, then every BDPT candidate of length 5 combined.
     let scene = TestScene::open_box();
-    let (camera, look, bounce, light) = (
-        CameraPoint::default(),
-        LookDown::new(&scene),
-        Bounce::new(&scene),
-        LightSample::new(&scene),
-    );
+    let fixture = BidirectionalFixture::new(&scene);
+    let (camera, look, bounce) = (&fixture.camera, &fixture.look, &fixture.bounce);
     let mut rng = Pcg32::new(3, 0);
     let mut paths = Vec::new();
     let sample = time(N / 4, |_| {
         let mut cam = RandomSequence::new();
-        cam.append(&camera)
-            .append(&look)
-            .append(&bounce)
-            .append(&bounce)
-            .append(&bounce);
+        cam.append(camera)
+            .append(look)
+            .append(bounce)
+            .append(bounce)
+            .append(bounce);
         cam.sample(&mut rng);
         black_box(&cam);
     });
     while paths.len() < 1000 {
         let mut cam = RandomSequence::new();
-        cam.append(&camera)
-            .append(&look)
-            .append(&bounce)
-            .append(&bounce)
-            .append(&bounce);
+        cam.append(camera)
+            .append(look)
+            .append(bounce)
+            .append(bounce)
+            .append(bounce);
         cam.sample(&mut rng);
         if cam.len() == 5 {
             paths.push(cam);
         }
     }
     let strategies: [&dyn aether_core::DynStrategy<TestVertex>; 5] =
-        [&camera, &look, &bounce, &bounce, &bounce];
+        [camera, look, bounce, bounce, bounce];
     let density = time(N / 4, |i| {
         let v = paths[i % paths.len()].vertices();
         let mut p = 1.0;
@@ -192,17 +152,16 @@ fn main() {
     // Sampling: both subpaths of a 5-vertex BDPT sample and its 6 (s, t)
     // candidates. Density evaluation: their combine, which evaluates every
     // candidate's vertices under every candidate's strategies.
-    let strategies = (&camera, &look, &bounce, &light);
     let mut candidates = SmallVec::new();
     let bdpt_sample = time(N / 4, |_| {
-        build(strategies, &mut rng, &mut candidates);
+        fixture.sample_candidates(5, &mut rng, &mut candidates);
         black_box(&candidates);
     });
     let sets: Vec<SmallVec<[RandomSequence<'_, TestVertex>; 8]>> = (0..256)
         .map(|_| {
             let mut c = SmallVec::new();
             while c.len() < 6 {
-                build(strategies, &mut rng, &mut c);
+                fixture.sample_candidates(5, &mut rng, &mut c);
             }
             c
         })

@@ -12,6 +12,10 @@ use crate::distribution::Step;
 use crate::frame::Frame;
 use crate::harness::Parameterization;
 use crate::primitives::{CosineHemisphere, DiscreteDistribution, UniformCone, UniformTriangle};
+use smallvec::SmallVec;
+
+use crate::rng::UniformSource;
+use crate::sequence::RandomSequence;
 use crate::strategy::{Prefix, Strategy};
 use crate::surface::{DiracPoint, Intersect, OnSurface};
 use crate::vertex::{Geometry, RayCaster, Vertex};
@@ -371,6 +375,68 @@ impl Strategy<TestVertex> for LightSample<'_> {
     }
     fn memory(&self) -> usize {
         0
+    }
+}
+
+/// The strategies of a small bidirectional sampler on the test scene: a
+/// camera subpath (pinhole, camera ray, bounces) and a light subpath (a
+/// point on the light, bounces), joined into every (s, t) candidate.
+#[derive(Clone, Copy, Debug)]
+pub struct BidirectionalFixture<'s> {
+    /// The pinhole.
+    pub camera: CameraPoint,
+    /// The camera ray.
+    pub look: LookDown<'s>,
+    /// Diffuse bounces, on both subpaths.
+    pub bounce: Bounce<'s>,
+    /// The first light vertex.
+    pub light: LightSample<'s>,
+}
+
+impl<'s> BidirectionalFixture<'s> {
+    /// The fixture on `scene`.
+    #[must_use]
+    pub fn new(scene: &'s TestScene) -> Self {
+        BidirectionalFixture {
+            camera: CameraPoint::default(),
+            look: LookDown::new(scene),
+            bounce: Bounce::new(scene),
+            light: LightSample::new(scene),
+        }
+    }
+
+    /// Samples a camera and a light subpath long enough for paths of
+    /// `length` vertices and pushes every candidate
+    /// `camera[..s] + reverse(light[..length − s])` that they allow into `out`,
+    /// ordered by s.
+    pub fn sample_candidates<'a>(
+        &'a self,
+        length: usize,
+        rng: &mut impl UniformSource,
+        out: &mut SmallVec<[RandomSequence<'a, TestVertex>; 8]>,
+    ) {
+        let mut camera = RandomSequence::new();
+        camera.append(&self.camera).append(&self.look);
+        let mut light = RandomSequence::new();
+        light.append(&self.light);
+        for _ in 2..length {
+            camera.append(&self.bounce);
+        }
+        for _ in 1..length {
+            light.append(&self.bounce);
+        }
+        camera.sample(rng);
+        light.sample(rng);
+        out.clear();
+        for s in 0..=length {
+            if s <= camera.len() && length - s <= light.len() {
+                out.push(
+                    camera
+                        .slice(0..s)
+                        .concat(&light.slice(0..length - s).reversed()),
+                );
+            }
+        }
     }
 }
 

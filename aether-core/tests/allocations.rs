@@ -8,7 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene, TestVertex};
+use aether_core::testing::{BidirectionalFixture, TestScene, TestVertex};
 use aether_core::{Heuristic, Pcg32, RandomSequence, combine};
 use smallvec::SmallVec;
 
@@ -41,62 +41,30 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-/// One sample: a camera and a light subpath, every (s, t) connection of
+/// One sample: a camera and a light subpath, every (s, t) candidate of
 /// length 5 and their MIS weights. Returns the sum of the weights.
-fn one_sample<'s>(
-    strategies: (
-        &'s CameraPoint,
-        &'s LookDown<'s>,
-        &'s Bounce<'s>,
-        &'s LightSample<'s>,
-    ),
+fn one_sample<'a>(
+    fixture: &'a BidirectionalFixture<'_>,
     rng: &mut Pcg32,
-    candidates: &mut SmallVec<[RandomSequence<'s, TestVertex>; 8]>,
+    candidates: &mut SmallVec<[RandomSequence<'a, TestVertex>; 8]>,
 ) -> f64 {
-    let (camera, look, bounce, light) = strategies;
-    let mut cam = RandomSequence::new();
-    cam.append(camera)
-        .append(look)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce);
-    cam.sample(rng);
-    let mut lig = RandomSequence::new();
-    lig.append(light)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce)
-        .append(bounce);
-    lig.sample(rng);
-    candidates.clear();
-    for s in 0..=5usize {
-        let t = 5 - s;
-        if s <= cam.len() && t <= lig.len() {
-            candidates.push(cam.slice(0..s).concat(&lig.slice(0..t).reversed()));
-        }
-    }
+    fixture.sample_candidates(5, rng, candidates);
     combine(candidates, Heuristic::POWER).iter().sum()
 }
 
 #[test]
 fn steady_state_sampling_and_combine_allocate_nothing() {
     let scene = TestScene::open_box();
-    let (camera, look, bounce, light) = (
-        CameraPoint::default(),
-        LookDown::new(&scene),
-        Bounce::new(&scene),
-        LightSample::new(&scene),
-    );
-    let strategies = (&camera, &look, &bounce, &light);
+    let fixture = BidirectionalFixture::new(&scene);
     let mut rng = Pcg32::new(1, 1);
     let mut candidates = SmallVec::new();
     for _ in 0..100 {
-        one_sample(strategies, &mut rng, &mut candidates);
+        one_sample(&fixture, &mut rng, &mut candidates);
     }
     let mut combined = 0;
     COUNTING.with(|c| c.set(true));
     for _ in 0..10_000 {
-        let total = one_sample(strategies, &mut rng, &mut candidates);
+        let total = one_sample(&fixture, &mut rng, &mut candidates);
         combined += usize::from(total > 0.0);
     }
     COUNTING.with(|c| c.set(false));
