@@ -1,10 +1,12 @@
-//! Scene-facing strategies written in the [`aether_core`] sampling language:
-//! camera position and direction, BSDF sampling with Russian roulette,
-//! emitter position and direction, direct emitter sampling and the portal
-//! segment, with the scene, geometry and materials they sample.
+//! Scene-facing strategies written in the [`aether_core`] sampling language,
+//! and the scene, geometry and materials they sample.
 //!
-//! This crate is being built (issues "scenes" and "reusable strategies");
-//! until then it only re-exports the language it builds on.
+//! Built so far: [`mesh`] (OBJ and Mitsuba `.serialized` loading) and
+//! [`geometry`] (ray casting through a compressed wide BVH, analytic
+//! spheres, watertight triangle tests and scale-aware ray offsets).
 #![deny(unsafe_code)]
+
+pub mod geometry;
+pub mod mesh;
 
 pub use aether_core as core;

@@ -1,0 +1,68 @@
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+
+use super::{MeshError, TriangleMesh};
+
+/// Loads every object of a Wavefront OBJ file into one mesh (as Mitsuba's
+/// `obj` shape does), triangulating polygons. Texture coordinates keep the
+/// OBJ convention (v up).
+pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..tobj::LoadOptions::default()
+    };
+    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
+        tobj::LoadError::OpenFileFailed => MeshError::Io {
+            path: path.to_owned(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open the file"),
+        },
+        other => MeshError::Format {
+            path: path.to_owned(),
+            message: format!("not a valid OBJ file: {other}"),
+        },
+    })?;
+    let mut mesh = TriangleMesh {
+        name: path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        ..TriangleMesh::default()
+    };
+    let all_normals = models.iter().all(|m| !m.mesh.normals.is_empty());
+    let all_uvs = models.iter().all(|m| !m.mesh.texcoords.is_empty());
+    for model in &models {
+        let m = &model.mesh;
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2])),
+        );
+        if all_normals {
+            mesh.normals.extend(
+                m.normals
+                    .chunks_exact(3)
+                    .map(|n| Vec3::new(n[0], n[1], n[2]).normalize_or_zero()),
+            );
+        }
+        if all_uvs {
+            mesh.uvs
+                .extend(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], t[1])));
+        }
+        mesh.triangles.extend(
+            m.indices
+                .chunks_exact(3)
+                .map(|t| [base + t[0], base + t[1], base + t[2]]),
+        );
+    }
+    if mesh.triangles.is_empty() {
+        return Err(MeshError::Format {
+            path: path.to_owned(),
+            message: "the OBJ file holds no faces".to_string(),
+        });
+    }
+    mesh.validate(path)?;
+    Ok(mesh)
+}

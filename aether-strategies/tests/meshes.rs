@@ -1,0 +1,118 @@
+//! Loading the Aether example meshes from ../shared, and bad mesh files.
+
+use std::path::{Path, PathBuf};
+
+use aether_strategies::geometry::{Geometry, Primitive};
+use aether_strategies::mesh::{MeshError, load_obj, load_serialized, serialized_mesh_count};
+
+fn scenes() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/aether");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        eprintln!(
+            "{} is absent: the example scenes are not loaded",
+            p.display()
+        );
+        None
+    }
+}
+
+#[test]
+fn cornell_box_objs() {
+    let Some(dir) = scenes() else { return };
+    let mut meshes = Vec::new();
+    for name in [
+        "back",
+        "ceiling",
+        "floor",
+        "greenwall",
+        "largebox",
+        "luminaire",
+        "redwall",
+        "smallbox",
+    ] {
+        meshes.push(load_obj(&dir.join(format!("cbox/meshes/cbox_{name}.obj"))).unwrap());
+    }
+    let counts: Vec<usize> = meshes.iter().map(|m| m.triangles.len()).collect();
+    // Quads for the walls and the luminaire, two for the ceiling, six for each box.
+    assert_eq!(counts, [2, 4, 2, 2, 12, 2, 2, 12]);
+    let g = Geometry::new(meshes, vec![]);
+    // From the camera, the tall box stands in the middle; above it, the back wall.
+    let eye = glam::Vec3::new(278.0, 273.0, -800.0);
+    let hit = g.intersect(eye, glam::Vec3::Z, f32::INFINITY).unwrap();
+    assert!(
+        matches!(hit.primitive, Primitive::Triangle { mesh: 4, .. }),
+        "{hit:?}"
+    );
+    let up = (glam::Vec3::new(150.0, 480.0, 559.2) - eye).normalize();
+    let hit = g.intersect(eye, up, f32::INFINITY).unwrap();
+    assert!(
+        matches!(hit.primitive, Primitive::Triangle { mesh: 0, .. })
+            && (hit.position.z - 559.2).abs() < 0.01,
+        "{hit:?}"
+    );
+}
+
+#[test]
+fn serialized_versions_3_and_4() {
+    let Some(dir) = scenes() else { return };
+    let sphere = dir.join("cbox-sphere/cbox-sphere.serialized");
+    assert_eq!(serialized_mesh_count(&sphere).unwrap(), 8);
+    assert_eq!(load_serialized(&sphere, 0).unwrap().triangles.len(), 1088);
+    assert_eq!(load_serialized(&sphere, 2).unwrap().triangles.len(), 2);
+    let bidir = dir.join("veach_bidir/bidir.serialized");
+    assert_eq!(serialized_mesh_count(&bidir).unwrap(), 11);
+    for i in 0..11 {
+        assert!(!load_serialized(&bidir, i).unwrap().triangles.is_empty());
+    }
+    let hole = load_serialized(&dir.join("cbox/cornell_box_keyhole.serialized"), 0).unwrap();
+    assert!(hole.area() > 0.0);
+}
+
+fn temp(name: &str, bytes: &[u8]) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("aether-mesh-tests-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn bad_meshes_name_the_file_and_the_problem() {
+    let missing = load_obj(Path::new("/nonexistent/mesh.obj")).unwrap_err();
+    assert!(
+        missing.to_string().contains("/nonexistent/mesh.obj"),
+        "{missing}"
+    );
+    let nan = temp("nan.obj", b"v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n");
+    let e = load_obj(&nan).unwrap_err();
+    assert!(
+        matches!(e, MeshError::NonFinite { vertex: 1, .. }) && e.to_string().contains("nan.obj"),
+        "{e}"
+    );
+    let empty = temp("empty.obj", b"# nothing\n");
+    assert!(
+        load_obj(&empty)
+            .unwrap_err()
+            .to_string()
+            .contains("no faces")
+    );
+    let junk = temp("junk.serialized", b"not a mesh at all");
+    let e = load_serialized(&junk, 0).unwrap_err();
+    assert!(
+        e.to_string().contains("junk.serialized") && e.to_string().contains("magic"),
+        "{e}"
+    );
+    let Some(dir) = scenes() else { return };
+    let e = load_serialized(&dir.join("cbox-sphere/cbox-sphere.serialized"), 9).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("shapeIndex 9 is out of range: the file holds 8 meshes"),
+        "{e}"
+    );
+    let mut truncated = std::fs::read(dir.join("cbox-sphere/cbox-sphere.serialized")).unwrap();
+    truncated.truncate(truncated.len() / 2);
+    let e = load_serialized(&temp("cut.serialized", &truncated), 0).unwrap_err();
+    assert!(e.to_string().contains("cut.serialized"), "{e}");
+}
