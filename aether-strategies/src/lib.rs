@@ -8,5 +8,6 @@
 
 pub mod geometry;
 pub mod mesh;
+pub mod scene;
 
 pub use aether_core as core;

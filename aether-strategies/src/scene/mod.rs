@@ -1,0 +1,7 @@
+//! Scene descriptions: Mitsuba 0.5/0.6 XML.
+//!
+//! [`xml`] reads a file into a tree of plugin declarations with typed
+//! properties, resolving `default` and `$param` substitution, `include`
+//! and transforms; every error names the file, the line and the element.
+
+pub mod xml;
