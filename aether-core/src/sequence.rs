@@ -91,6 +91,10 @@ pub(crate) struct Slot<'s, V> {
     /// Position within that step, in sampling order.
     pub(crate) part: u8,
     pub(crate) id: u64,
+    /// For a vertex no strategy covers: true if it was given (a Dirac of
+    /// mass one at itself), false if it was cut from a multi-vertex step
+    /// (it has no density of its own).
+    pub(crate) given: bool,
     /// The density recorded while sampling, on the step's first vertex.
     pub(crate) recorded: Option<(FactorKey, Density)>,
 }
@@ -252,6 +256,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 arity: 1,
                 part: 0,
                 id: fresh_id(),
+                given: true,
                 recorded: None,
             });
         }
@@ -284,7 +289,12 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// [`combine`](crate::combine) and [`pdf_of`](Self::pdf_of).
     pub fn sample<R: UniformSource>(&mut self, rng: &mut R) -> StepKind {
         let pending = std::mem::take(&mut self.pending);
-        let mut result = StepKind::Vertex;
+        // A sequence that already stopped samples nothing more.
+        let mut result = if self.unsampled.is_empty() {
+            StepKind::Vertex
+        } else {
+            self.end.map_or(StepKind::Void, |e| e.0)
+        };
         for s in pending {
             if result == StepKind::Vertex {
                 result = self.sample_step(s, rng);
@@ -329,6 +339,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 arity: arity as u8,
                 part: part as u8,
                 id,
+                given: false,
                 recorded: None,
             });
         }
@@ -352,10 +363,16 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// The number of vertices of the paths this sequence's strategies
-    /// produce: its length plus the vertices of unsampled steps.
+    /// produce: its length plus the vertices of unsampled and pending steps.
     #[must_use]
     pub fn technique_len(&self) -> usize {
-        self.len() + self.unsampled.iter().map(StrategyRef::arity).sum::<usize>()
+        self.len()
+            + self
+                .unsampled
+                .iter()
+                .chain(&self.pending)
+                .map(StrategyRef::arity)
+                .sum::<usize>()
     }
 
     /// True if there are no vertices.
@@ -389,8 +406,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         self.slots[i].strategy.map(|s| s.name())
     }
 
-    /// The vertices in `range` with their strategies. A multi-vertex step
-    /// that the range cuts becomes given vertices.
+    /// The vertices in `range` with their strategies. The vertices of a
+    /// multi-vertex step that the range cuts keep no strategy and have
+    /// density zero: a technique that holds them cannot be weighed.
     ///
     /// # Panics
     /// If `range` is out of bounds, like slicing.
@@ -411,6 +429,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                     strategy: None,
                     arity: 1,
                     part: 0,
+                    given: false,
                     recorded: None,
                     ..*slot
                 };
@@ -498,18 +517,20 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let mut k = 0;
         let sampled = std::iter::from_fn(move || {
             let slot = self.slots.get(k)?;
+            // A cut vertex matches no id (ids are never 0): density zero.
+            let fixed_id = if slot.given { slot.id } else { 0 };
             let span = Span::new(
                 k,
                 usize::from(slot.arity),
                 slot.strategy,
                 slot.reversed,
-                slot.id,
+                fixed_id,
             );
             k += span.arity;
             Some(span)
         });
         let mut start = self.len();
-        let unsampled = self.unsampled.iter().map(move |s| {
+        let unsampled = self.unsampled.iter().chain(&self.pending).map(move |s| {
             let span = Span::new(start, s.arity(), Some(*s), false, 0);
             start += span.arity;
             span
@@ -582,7 +603,17 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 return d;
             }
         }
-        let d = if span.reversed {
+        let d = self.evaluate(span, strategy);
+        if let (Some(key), Some(cache)) = (key, cache) {
+            cache.insert(key, d);
+        }
+        d
+    }
+
+    /// Runs `span`'s strategy in density mode on this path's vertices.
+    fn evaluate(&self, span: &Span<'s, V>, strategy: StrategyRef<'s, V>) -> Density {
+        let end = span.start + span.arity;
+        if span.reversed {
             let prefix = Prefix::reversed(&self.vertices[end..]);
             if span.arity == 1 {
                 strategy.density_of(prefix, &self.vertices[span.start..end])
@@ -599,11 +630,24 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 Prefix::forward(&self.vertices[..span.start]),
                 &self.vertices[span.start..end],
             )
-        };
-        if let (Some(key), Some(cache)) = (key, cache) {
-            cache.insert(key, d);
         }
-        d
+    }
+
+    /// As [`pdf_of`](Self::pdf_of), but every factor evaluated afresh: no
+    /// recorded density and no cache. The MIS check compares against it.
+    pub(crate) fn pdf_of_fresh(&self, path: &Self) -> PathDensity {
+        if self.technique_len() != path.len() || !path.is_complete() {
+            return PathDensity::ONE.times(Density::zero(Measure::Area));
+        }
+        self.spans().fold(PathDensity::ONE, |p, span| {
+            let d = match span.strategy {
+                Some(strategy) if span.start + span.arity <= path.len() => {
+                    path.evaluate(&span, strategy)
+                }
+                _ => path.factor(&span, None),
+            };
+            p.times(d)
+        })
     }
 
     /// The density of this sequence's own vertices under its own
@@ -620,7 +664,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// structures differ, or if `path` is incomplete.
     #[must_use]
     pub fn pdf_of(&self, path: &Self) -> PathDensity {
-        if self.technique_len() != path.len() || !path.is_complete() || !self.pending.is_empty() {
+        if self.technique_len() != path.len() || !path.is_complete() {
             return PathDensity::ONE.times(Density::zero(Measure::Area));
         }
         self.spans().fold(PathDensity::ONE, |p, span| {

@@ -347,7 +347,11 @@ fn embed_vertex<V: Vertex>(v: &V, coords: &mut Coords) -> usize {
     match v.geometry() {
         Geometry::Surface { .. } => v.position().embed(coords),
         Geometry::AtInfinity { direction } => direction.embed(coords),
-        Geometry::Point => 0,
+        Geometry::Point => {
+            // No manifold, but distinct points must stay distinct atoms.
+            v.position().embed(coords);
+            0
+        }
     }
 }
 

@@ -325,11 +325,13 @@ where
                 Density::zero(Measure::AreaProduct),
             ));
         };
-        let density = match self.line(&a, &b) {
-            Some((_, _, factor)) => line_to_area_product(y.density, w.density, factor),
-            None => Density::zero(Measure::AreaProduct),
-        };
-        Some(Sample::new(Step::Vertex((a, b)), density))
+        // End points at infinity, or a line that rounding moved off the
+        // portal, have no area-product density: a void sample.
+        let (_, _, factor) = self.line(&a, &b)?;
+        Some(Sample::new(
+            Step::Vertex((a, b)),
+            line_to_area_product(y.density, w.density, factor),
+        ))
     }
     fn density(&self, v: &Step<(V, V)>) -> Density {
         let Step::Vertex((a, b)) = v else {
@@ -348,5 +350,8 @@ where
         let mut u = self.points.invert(&y)?;
         u.extend(self.directions.invert(&w)?);
         Some(u)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.points.has_overlapping_branches() || self.directions.has_overlapping_branches()
     }
 }

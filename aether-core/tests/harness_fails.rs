@@ -130,3 +130,102 @@ fn forgotten_lobe_fails_the_chi_square_test() {
     let d = ForgetfulMixture(DiscreteDistribution::new(&[0.7, 0.3]).unwrap());
     assert!(matches!(run(&d), Failure::ChiSquare { .. }));
 }
+
+/// Cosine directions that record density zero: produced, yet "impossible".
+struct ZeroDensity;
+
+impl Distribution for ZeroDensity {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        CosineHemisphere
+            .sample(u)
+            .map(|s| Sample::new(s.value, Density::zero(aether_core::Measure::SolidAngle)))
+    }
+    fn density(&self, _w: &Vec3) -> Density {
+        Density::zero(aether_core::Measure::SolidAngle)
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        CosineHemisphere.invert(w)
+    }
+}
+
+#[test]
+fn zero_density_samples_fail_the_agreement_check() {
+    assert!(matches!(
+        run(&ZeroDensity),
+        Failure::ZeroDensitySample { .. }
+    ));
+}
+
+/// A bounce that claims to read no conditioning vertex although it reads
+/// two: its densities are cached under keys that collide.
+struct Forgetful<'s>(aether_core::testing::Bounce<'s>);
+
+impl aether_core::Strategy<aether_core::testing::TestVertex> for Forgetful<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: aether_core::Prefix<'a, aether_core::testing::TestVertex>,
+    ) -> impl Distribution<Value = aether_core::Step<aether_core::testing::TestVertex>> + 'a {
+        self.0.distribution(prefix)
+    }
+    fn memory(&self) -> usize {
+        0
+    }
+}
+
+#[test]
+fn misstated_memory_fails_the_mis_check() {
+    use aether_core::harness::{Technique, check_mis};
+    use aether_core::testing::{BidirectionalFixture, TestScene};
+    let scene = TestScene::open_box();
+    let f = BidirectionalFixture::new(&scene);
+    let forgetful = Forgetful(f.bounce);
+    // Five vertices: the middle one has the same depth from either end, so
+    // its forward and reversed densities share a key when the conditioning
+    // vertices are left out of it.
+    fn make<'s>(
+        f: &'s BidirectionalFixture<'_>,
+        b: &'s dyn aether_core::DynStrategy<aether_core::testing::TestVertex>,
+    ) -> [Technique<'s, aether_core::testing::TestVertex>; 3] {
+        [
+            Technique::new()
+                .forward(&f.camera)
+                .forward(&f.look)
+                .forward(b)
+                .forward(b)
+                .reversed(&f.light),
+            Technique::new()
+                .forward(&f.camera)
+                .forward(&f.look)
+                .forward(b)
+                .reversed(b)
+                .reversed(&f.light),
+            Technique::new()
+                .forward(&f.camera)
+                .forward(&f.look)
+                .reversed(b)
+                .reversed(b)
+                .reversed(&f.light),
+        ]
+    }
+    let e = check_mis(
+        &make(&f, &forgetful),
+        aether_core::Heuristic::POWER,
+        300,
+        &mut aether_core::Pcg32::new(1, 2),
+    )
+    .expect_err("collisions must show");
+    println!("{e}");
+    // The honest bounce passes the same check.
+    let honest = make(&f, &f.bounce);
+    check_mis(
+        &honest,
+        aether_core::Heuristic::POWER,
+        200,
+        &mut aether_core::Pcg32::new(1, 2),
+    )
+    .unwrap();
+}

@@ -308,3 +308,27 @@ fn mis_estimator_is_unbiased() {
         "MIS {mean} ± {sigma} vs {reference}"
     );
 }
+
+#[test]
+fn a_stopped_sequence_samples_nothing_more() {
+    let scene = TestScene::open_box();
+    let f = aether_core::testing::BidirectionalFixture::new(&scene);
+    let mut rng = Pcg32::new(12, 0);
+    // Bounces from the pinhole go up and often escape the open box.
+    let mut checked = 0;
+    while checked < 20 {
+        let mut s = RandomSequence::new();
+        s.append(&f.camera).append(&f.bounce).append(&f.bounce);
+        if s.sample(&mut rng) == aether_core::StepKind::Vertex {
+            continue;
+        }
+        let (len, technique) = (s.len(), s.technique_len());
+        assert_eq!(technique, 3);
+        s.append(&f.light);
+        assert_ne!(s.sample(&mut rng), aether_core::StepKind::Vertex);
+        assert_eq!(s.len(), len, "nothing is sampled after a failure");
+        assert_eq!(s.technique_len(), 4);
+        assert!(s.pdf().is_zero() && !s.is_complete());
+        checked += 1;
+    }
+}

@@ -228,7 +228,14 @@ where
         });
     }
     if s.density.is_zero() {
-        return None;
+        // A value that was produced has positive probability; only events
+        // without a density (a miss) may record zero.
+        let (_, m) = embed(&s.value);
+        let is_event = m == 0 && embed(&s.value).0.is_empty();
+        return (!is_event).then(|| Failure::ZeroDensitySample {
+            u: u.to_vec(),
+            value: format!("{:?}", s.value),
+        });
     }
     // Inversion: sampling the inverted uniforms gives the value back.
     let (c0, _) = embed(&s.value);

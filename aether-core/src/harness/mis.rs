@@ -103,8 +103,8 @@ pub struct MisReport {
     pub paths: usize,
     /// Largest |Σ w − 1|.
     pub max_partition_error: f64,
-    /// Largest relative difference between cached, incremental densities
-    /// and direct evaluation.
+    /// Largest difference between the weights of `combine` and those from
+    /// densities evaluated afresh.
     pub max_density_error: f64,
     /// For each technique, its mean weight over all checked paths.
     pub mean_weights: Vec<f64>,
@@ -112,8 +112,12 @@ pub struct MisReport {
 
 /// Samples `paths_per_technique` paths with each technique and checks, for
 /// each path, that the MIS weights of all techniques on it sum to one
-/// within 1e-9, and that the weights equal those computed from densities
-/// evaluated directly with [`RandomSequence::pdf_of`].
+/// within 1e-9, that the sampling technique's own density is positive, and
+/// that [`combine`]'s weights (from recorded, cached and incrementally
+/// updated densities) equal those from densities evaluated afresh, to 1e-5.
+///
+/// The check verifies the MIS bookkeeping, not the densities themselves:
+/// those are what [`check`](super::check) verifies for each strategy.
 pub fn check_mis<V: Vertex + std::fmt::Debug, R: UniformSource>(
     techniques: &[Technique<'_, V>],
     heuristic: Heuristic,
@@ -138,7 +142,10 @@ pub fn check_mis<V: Vertex + std::fmt::Debug, R: UniformSource>(
             }
             let weights = combine(&candidates, heuristic);
             let sum: f64 = weights.iter().sum();
-            let direct: Vec<_> = candidates.iter().map(|c| c.pdf_of(&path)).collect();
+            // Direct evaluation: every factor afresh, without the densities
+            // recorded while sampling or cached between candidates, so that a
+            // wrong cache key (a strategy that misstates its memory) shows.
+            let direct: Vec<_> = candidates.iter().map(|c| c.pdf_of_fresh(&path)).collect();
             if direct[t].is_zero() {
                 return Err(format!(
                     "technique {t} sampled a path that its own density calls impossible: {path:?}"
@@ -151,8 +158,11 @@ pub fn check_mis<V: Vertex + std::fmt::Debug, R: UniformSource>(
             }
             for (i, w) in weights.iter().enumerate() {
                 let w_direct = heuristic.weight(&direct, i);
+                // Densities recorded while sampling come from the forward map
+                // and agree with density mode to about 1e-7 (single-precision
+                // geometry), so the weights are compared to 1e-5.
                 let err = (w - w_direct).abs();
-                if err > 1e-9 {
+                if err > 1e-5 {
                     return Err(format!(
                         "combine gives weight {w} to technique {i}, direct evaluation {w_direct}"
                     ));

@@ -18,7 +18,8 @@
 //!   maps that are nearly singular over a whole region (lines grazing a
 //!   portal) are best checked on a domain that stays clear of it.
 //!   Discrete choices enter through the remapped uniform, so J includes
-//!   their probabilities; mixtures of overlapping lobes are checked lobe by lobe;
+//!   their probabilities. Mixtures of overlapping lobes have no single
+//!   pre-image, so the check skips them: check their lobes one by one;
 //! * **(c) chi-square**: a histogram of samples over a [`Chart`] against the
 //!   density integrated over its cells, Dirac atoms and events (termination,
 //!   misses, void samples) in cells of their own, at p > 0.01.
@@ -134,6 +135,14 @@ pub enum Failure {
         /// Returned in density mode.
         evaluated: String,
     },
+    /// A sampled value recorded density zero: the value cannot be produced,
+    /// yet was.
+    ZeroDensitySample {
+        /// Uniforms.
+        u: Vec<f32>,
+        /// The value.
+        value: String,
+    },
     /// Sampling the inverted uniforms does not give the value back.
     Inversion {
         /// Uniforms.
@@ -189,6 +198,9 @@ impl fmt::Display for Failure {
                     f,
                     "(a) density mode disagrees with sampling at u = {u:?}: recorded {recorded}, evaluated {evaluated}"
                 )
+            }
+            Failure::ZeroDensitySample { u, value } => {
+                write!(f, "(a) the sample at u = {u:?} has density zero: {value}")
             }
             Failure::Inversion {
                 u,

@@ -26,9 +26,10 @@ impl PiecewiseConstant1D {
     }
 
     fn cell_of(&self, x: f32) -> Option<usize> {
+        let n = self.cells.len();
         (0.0..1.0)
             .contains(&x)
-            .then(|| ((x * self.cells.len() as f32) as usize).min(self.cells.len() - 1))
+            .then(|| ((f64::from(x) * n as f64) as usize).min(n - 1))
     }
 }
 
@@ -39,7 +40,12 @@ impl Distribution for PiecewiseConstant1D {
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<f32>> {
         let (i, rest) = self.cells.select(u[0]);
-        let x = below_one((i as f32 + rest) / self.cells.len() as f32);
+        let n = self.cells.len() as f64;
+        let mut x = below_one(((i as f64 + f64::from(rest)) / n) as f32);
+        // Rounding may carry a point at the top of cell i into cell i + 1.
+        while self.cell_of(x).is_some_and(|c| c > i) {
+            x = f32::from_bits(x.to_bits() - 1);
+        }
         Some(Sample::new(
             x,
             Density::new(self.cell_density(i), Measure::Length),
