@@ -22,7 +22,11 @@
 //!   pre-image, so the check skips them: check their lobes one by one;
 //! * **(c) chi-square**: a histogram of samples over a [`Chart`] against the
 //!   density integrated over its cells, Dirac atoms and events (termination,
-//!   misses, void samples) in cells of their own, at p > 0.01.
+//!   misses, void samples) in cells of their own, at p > 0.01. An atom is
+//!   expected with the mass its density records; a Dirac component that
+//!   passed through [`Intersect`](crate::Intersect) records mass × |cos|/r²
+//!   (the convention that makes Dirac ratios meaningful in MIS), so check
+//!   such strategies before the intersection, lobe by lobe.
 //!
 //! [`check_mis`] checks **(d)**: for techniques that can produce the same
 //! paths, the MIS weights of [`combine`](crate::combine) sum to one and its
