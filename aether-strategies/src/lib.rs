@@ -9,5 +9,6 @@
 pub mod geometry;
 pub mod mesh;
 pub mod scene;
+pub mod spectrum;
 
 pub use aether_core as core;
