@@ -4,4 +4,10 @@
 //! properties, resolving `default` and `$param` substitution, `include`
 //! and transforms; every error names the file, the line and the element.
 
+mod load;
 pub mod xml;
+
+pub use load::{
+    Camera, Emitter, Film, IntegratorSettings, Material, MicrofacetKind, Roughness, Scene, Shape,
+    Texture,
+};

@@ -1,0 +1,842 @@
+//! From the XML tree to a scene: meshes in world space, material and
+//! emitter descriptions, the camera, the film and the integrator settings.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::{Mat4, Vec3};
+
+use super::xml::{Category, Object, SceneError, Value, Warning, read_scene};
+use crate::geometry::{Geometry, Sphere};
+use crate::mesh::{TriangleMesh, load_obj, load_serialized};
+use crate::spectrum::{SpectrumKind, to_linear_rgb};
+
+/// A spatially varying or constant colour parameter.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Texture {
+    /// A linear RGB constant.
+    Constant([f32; 3]),
+    /// An image, addressed by uv × `uv_scale` + offset.
+    Bitmap {
+        /// The image file (checked to exist).
+        path: PathBuf,
+        /// Scale of uv.
+        uv_scale: [f32; 2],
+        /// Offset of uv.
+        uv_offset: [f32; 2],
+    },
+    /// Another texture times a factor.
+    Scale(f32, Box<Texture>),
+}
+
+/// Microfacet distribution names of Mitsuba.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MicrofacetKind {
+    /// Beckmann.
+    Beckmann,
+    /// GGX.
+    Ggx,
+}
+
+/// Microfacet roughness.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Roughness {
+    /// Distribution.
+    pub kind: MicrofacetKind,
+    /// α along u and v.
+    pub alpha: [f32; 2],
+}
+
+/// A BSDF as declared.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Material {
+    /// Lambertian.
+    Diffuse {
+        /// Albedo.
+        reflectance: Texture,
+    },
+    /// Smooth or rough glass.
+    Dielectric {
+        /// Interior index.
+        int_ior: f32,
+        /// Exterior index.
+        ext_ior: f32,
+        /// `None` for a smooth (Dirac) interface.
+        roughness: Option<Roughness>,
+    },
+    /// Smooth or rough metal.
+    Conductor {
+        /// Named metal (Mitsuba's `material`), or `None` for a perfect mirror.
+        metal: Option<String>,
+        /// Tint.
+        specular_reflectance: [f32; 3],
+        /// `None` for a smooth (Dirac) interface.
+        roughness: Option<Roughness>,
+    },
+    /// A diffuse base under a dielectric coat.
+    Plastic {
+        /// Base albedo.
+        diffuse_reflectance: Texture,
+        /// Specular tint.
+        specular_reflectance: [f32; 3],
+        /// Interior index.
+        int_ior: f32,
+        /// Exterior index.
+        ext_ior: f32,
+        /// `None` for a smooth coat.
+        roughness: Option<Roughness>,
+    },
+    /// A bump-mapped material.
+    BumpMap {
+        /// The height texture.
+        height: Texture,
+        /// The material it perturbs.
+        inner: Box<Material>,
+    },
+    /// The same material on both sides.
+    TwoSided(Box<Material>),
+}
+
+/// A light source as declared.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Emitter {
+    /// Emission from shape `shape` (an index into [`Scene::shapes`]).
+    Area {
+        /// Radiance.
+        radiance: [f32; 3],
+        /// The shape.
+        shape: usize,
+    },
+    /// A point light.
+    Point {
+        /// Position.
+        position: Vec3,
+        /// Intensity.
+        intensity: [f32; 3],
+    },
+    /// A spot light.
+    Spot {
+        /// Object to world (the light looks along +z).
+        to_world: Mat4,
+        /// Intensity.
+        intensity: [f32; 3],
+        /// Cut-off angle in degrees.
+        cutoff_angle: f32,
+        /// Beam width in degrees.
+        beam_width: f32,
+    },
+    /// A distant light.
+    Directional {
+        /// Direction of travel of the light.
+        direction: Vec3,
+        /// Irradiance.
+        irradiance: [f32; 3],
+    },
+    /// Uniform radiance from every direction.
+    Constant {
+        /// Radiance.
+        radiance: [f32; 3],
+    },
+    /// An environment map.
+    EnvMap {
+        /// The EXR file (checked to exist).
+        path: PathBuf,
+        /// Scale.
+        scale: f32,
+        /// Object to world.
+        to_world: Mat4,
+    },
+}
+
+/// A shape of the scene: a mesh or a sphere of [`Scene::geometry`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shape {
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    /// Index into [`Scene::emitters`], for area lights.
+    pub emitter: Option<usize>,
+    /// Where it was declared.
+    pub declared: String,
+}
+
+/// The camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// Camera to world (Mitsuba's: looks along +z, x to the left).
+    pub to_world: Mat4,
+    /// Field of view in degrees, along `fov_axis`.
+    pub fov: f32,
+    /// `x`, `y`, `diagonal`, `smaller` or `larger`.
+    pub fov_axis: String,
+    /// Near clip distance.
+    pub near_clip: f32,
+    /// Far clip distance.
+    pub far_clip: f32,
+    /// Lens radius (0 for a pinhole) and focus distance.
+    pub aperture_radius: f32,
+    /// Focus distance (thin lens).
+    pub focus_distance: f32,
+}
+
+/// Film and sampling settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Crop window: offset and size.
+    pub crop: [u32; 4],
+    /// Reconstruction filter: `box`, `gaussian` or `tent`.
+    pub filter: String,
+    /// Samples per pixel.
+    pub spp: u32,
+}
+
+/// The integrator the scene asks for, with its parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntegratorSettings {
+    /// Our name: `path`, `direct`, `bdpt`, `tridir`, `mlt`, `gpt`, `light`.
+    pub name: String,
+    /// Mitsuba's maxDepth (−1: unlimited).
+    pub max_depth: i64,
+    /// Depth at which Russian roulette starts.
+    pub rr_depth: i64,
+}
+
+/// A loaded scene.
+#[derive(Debug)]
+pub struct Scene {
+    /// Ray casting over every shape.
+    pub geometry: Geometry,
+    /// Per mesh then per sphere of `geometry`: material and emitter.
+    pub shapes: Vec<Shape>,
+    /// Materials.
+    pub materials: Vec<Material>,
+    /// Emitters.
+    pub emitters: Vec<Emitter>,
+    /// The camera.
+    pub camera: Camera,
+    /// Film and sampling.
+    pub film: Film,
+    /// Integrator settings.
+    pub integrator: IntegratorSettings,
+    /// What was skipped or adjusted while loading.
+    pub warnings: Vec<Warning>,
+}
+
+impl Scene {
+    /// Loads a Mitsuba scene file.
+    pub fn load(path: &Path, params: &HashMap<String, String>) -> Result<Scene, SceneError> {
+        let file = read_scene(path, params)?;
+        let mut loader = Loader {
+            meshes: Vec::new(),
+            spheres: Vec::new(),
+            mesh_shapes: Vec::new(),
+            sphere_shapes: Vec::new(),
+            materials: Vec::new(),
+            material_ids: HashMap::new(),
+            emitters: Vec::new(),
+            warnings: file.warnings,
+        };
+        let root = &file.root;
+        for child in &root.children {
+            match child.category {
+                Category::Shape => loader.shape(child)?,
+                Category::Emitter => {
+                    let e = loader.emitter(child, None)?;
+                    loader.emitters.push(e);
+                }
+                Category::Bsdf | Category::Texture | Category::Sensor | Category::Integrator => {}
+                Category::Medium | Category::Phase => loader.warnings.push(Warning {
+                    location: child.location.clone(),
+                    message: format!(
+                        "{} is not referenced by any shape and is ignored",
+                        child.describe()
+                    ),
+                }),
+                _ => loader.warnings.push(Warning {
+                    location: child.location.clone(),
+                    message: format!("{} is ignored at the top level", child.describe()),
+                }),
+            }
+        }
+        let sensor = root
+            .children_of(Category::Sensor)
+            .next()
+            .ok_or_else(|| root.error("the scene has no <sensor>"))?;
+        let (camera, film) = camera_and_film(sensor)?;
+        let integrator = match root.children_of(Category::Integrator).next() {
+            Some(i) => integrator(i)?,
+            None => IntegratorSettings {
+                name: "path".into(),
+                max_depth: -1,
+                rr_depth: 5,
+            },
+        };
+        let Loader {
+            meshes,
+            spheres,
+            mut mesh_shapes,
+            sphere_shapes,
+            materials,
+            mut emitters,
+            warnings,
+            ..
+        } = loader;
+        for e in &mut emitters {
+            if let Emitter::Area { shape, .. } = e {
+                if *shape >= SPHERE_BASE {
+                    *shape = *shape - SPHERE_BASE + meshes.len();
+                }
+            }
+        }
+        mesh_shapes.extend(sphere_shapes);
+        Ok(Scene {
+            geometry: Geometry::new(meshes, spheres),
+            shapes: mesh_shapes,
+            materials,
+            emitters,
+            camera,
+            film,
+            integrator,
+            warnings,
+        })
+    }
+}
+
+/// Provisional shape indices of spheres, while meshes are still being read.
+const SPHERE_BASE: usize = usize::MAX / 2;
+
+struct Loader {
+    meshes: Vec<TriangleMesh>,
+    spheres: Vec<Sphere>,
+    mesh_shapes: Vec<Shape>,
+    sphere_shapes: Vec<Shape>,
+    materials: Vec<Material>,
+    material_ids: HashMap<*const Object, usize>,
+    emitters: Vec<Emitter>,
+    warnings: Vec<Warning>,
+}
+
+fn rgb(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+/// A colour property: spectrum, rgb or float, converted for its use.
+fn color(
+    o: &Object,
+    name: &str,
+    default: [f32; 3],
+    kind: SpectrumKind,
+) -> Result<[f32; 3], SceneError> {
+    let Some(p) = o.property(name) else {
+        return Ok(default);
+    };
+    Ok(match &p.value {
+        Value::Spectrum(s) => rgb(to_linear_rgb(s, kind)),
+        Value::Rgb(c) => rgb(*c),
+        Value::Float(x) => [*x as f32; 3],
+        Value::Integer(i) => [*i as f32; 3],
+        other => {
+            return Err(o.error(format!(
+                "'{name}' must be a spectrum or a colour, not {other:?}"
+            )));
+        }
+    })
+}
+
+fn positive(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
+    let v = o.float(name, default)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v as f32)
+    } else {
+        Err(o.error(format!("'{name}' must be positive, not {v}")))
+    }
+}
+
+/// Index of refraction: a number or a named material.
+fn ior(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
+    if let Some(s) = o.string(name).ok().flatten() {
+        let n = match s {
+            "vacuum" => 1.0,
+            "air" => 1.000_277,
+            "water" => 1.333,
+            "bk7" => 1.5046,
+            "glass" => 1.5,
+            "acrylic glass" => 1.49,
+            "polypropylene" => 1.49,
+            "diamond" => 2.419,
+            other => return Err(o.error(format!("unknown index of refraction '{other}'"))),
+        };
+        return Ok(n);
+    }
+    positive(o, name, default)
+}
+
+fn roughness(o: &Object) -> Result<Option<Roughness>, SceneError> {
+    if !o.kind.starts_with("rough") {
+        return Ok(None);
+    }
+    let kind = match o.string("distribution")?.unwrap_or("beckmann") {
+        "beckmann" => MicrofacetKind::Beckmann,
+        "ggx" => MicrofacetKind::Ggx,
+        other => {
+            return Err(o.error(format!(
+                "the microfacet distribution '{other}' is not supported (beckmann, ggx)"
+            )));
+        }
+    };
+    let alpha = positive(o, "alpha", 0.1)?;
+    let au = if o.property("alphaU").is_some() {
+        positive(o, "alphaU", 0.1)?
+    } else {
+        alpha
+    };
+    let av = if o.property("alphaV").is_some() {
+        positive(o, "alphaV", 0.1)?
+    } else {
+        alpha
+    };
+    Ok(Some(Roughness {
+        kind,
+        alpha: [au, av],
+    }))
+}
+
+fn texture(o: &Object, name: &str, default: [f32; 3]) -> Result<Texture, SceneError> {
+    if let Some(t) = o
+        .children_of(Category::Texture)
+        .find(|t| t.name.as_deref() == Some(name))
+    {
+        return texture_object(t);
+    }
+    Ok(Texture::Constant(color(
+        o,
+        name,
+        default,
+        SpectrumKind::Reflectance,
+    )?))
+}
+
+fn texture_object(t: &Object) -> Result<Texture, SceneError> {
+    match t.kind.as_str() {
+        "bitmap" => {
+            let file = t
+                .string("filename")?
+                .ok_or_else(|| t.error("the bitmap has no 'filename'"))?;
+            let path = t
+                .location
+                .file
+                .parent()
+                .unwrap_or(Path::new("."))
+                .join(file);
+            if !path.is_file() {
+                return Err(t.error(format!("the image {} does not exist", path.display())));
+            }
+            let s = t.float("uvscale", 1.0)? as f32;
+            let uv_scale = [
+                t.float("uscale", f64::from(s))? as f32,
+                t.float("vscale", f64::from(s))? as f32,
+            ];
+            let uv_offset = [
+                t.float("uoffset", 0.0)? as f32,
+                t.float("voffset", 0.0)? as f32,
+            ];
+            Ok(Texture::Bitmap {
+                path,
+                uv_scale,
+                uv_offset,
+            })
+        }
+        "scale" => {
+            let inner = t
+                .children_of(Category::Texture)
+                .next()
+                .ok_or_else(|| t.error("a scale texture needs a nested texture"))?;
+            Ok(Texture::Scale(
+                t.float("scale", 1.0)? as f32,
+                Box::new(texture_object(inner)?),
+            ))
+        }
+        other => Err(t.error(format!(
+            "the texture type '{other}' is not supported (bitmap, scale)"
+        ))),
+    }
+}
+
+fn material(o: &Object) -> Result<Material, SceneError> {
+    let nested = || {
+        o.children_of(Category::Bsdf)
+            .next()
+            .ok_or_else(|| o.error("needs a nested <bsdf>"))
+    };
+    Ok(match o.kind.as_str() {
+        "diffuse" => Material::Diffuse {
+            reflectance: texture(o, "reflectance", [0.5; 3])?,
+        },
+        "dielectric" | "roughdielectric" => Material::Dielectric {
+            int_ior: ior(o, "intIOR", 1.5046)?,
+            ext_ior: ior(o, "extIOR", 1.000_277)?,
+            roughness: roughness(o)?,
+        },
+        "conductor" | "roughconductor" => {
+            let metal = o.string("material")?.map(str::to_string);
+            if let Some(m) = &metal {
+                if !["Al", "Cu", "Au", "Ag", "Cr", "none"].contains(&m.as_str()) {
+                    return Err(o.error(format!(
+                        "the metal '{m}' is not known (Al, Cu, Au, Ag, Cr, none)"
+                    )));
+                }
+            }
+            Material::Conductor {
+                metal: metal.filter(|m| m != "none"),
+                specular_reflectance: color(
+                    o,
+                    "specularReflectance",
+                    [1.0; 3],
+                    SpectrumKind::Reflectance,
+                )?,
+                roughness: roughness(o)?,
+            }
+        }
+        "plastic" | "roughplastic" => Material::Plastic {
+            diffuse_reflectance: texture(o, "diffuseReflectance", [0.5; 3])?,
+            specular_reflectance: color(
+                o,
+                "specularReflectance",
+                [1.0; 3],
+                SpectrumKind::Reflectance,
+            )?,
+            int_ior: ior(o, "intIOR", 1.49)?,
+            ext_ior: ior(o, "extIOR", 1.000_277)?,
+            roughness: roughness(o)?,
+        },
+        "bumpmap" => {
+            let height = o
+                .children_of(Category::Texture)
+                .next()
+                .ok_or_else(|| o.error("a bump map needs a <texture>"))?;
+            Material::BumpMap {
+                height: texture_object(height)?,
+                inner: Box::new(material(nested()?)?),
+            }
+        }
+        "twosided" => Material::TwoSided(Box::new(material(nested()?)?)),
+        other => return Err(o.error(format!("the BSDF type '{other}' is not supported"))),
+    })
+}
+
+impl Loader {
+    fn material_index(&mut self, o: &Arc<Object>) -> Result<usize, SceneError> {
+        let key = Arc::as_ptr(o);
+        if let Some(&i) = self.material_ids.get(&key) {
+            return Ok(i);
+        }
+        let m = material(o)?;
+        self.materials.push(m);
+        self.material_ids.insert(key, self.materials.len() - 1);
+        Ok(self.materials.len() - 1)
+    }
+
+    fn shape(&mut self, o: &Object) -> Result<(), SceneError> {
+        let to_world = o.transform("toWorld")?;
+        let base = o
+            .location
+            .file
+            .parent()
+            .unwrap_or(Path::new("."))
+            .to_path_buf();
+        let file = |o: &Object| -> Result<PathBuf, SceneError> {
+            let name = o
+                .string("filename")?
+                .ok_or_else(|| o.error("the 'filename' property is missing"))?;
+            Ok(base.join(name))
+        };
+        let mesh_error = |e: crate::mesh::MeshError| o.error(e.to_string());
+        let geometry: Result<TriangleMesh, Sphere> = match o.kind.as_str() {
+            "obj" => Ok(load_obj(&file(o)?).map_err(mesh_error)?),
+            "serialized" => {
+                let index = o.integer("shapeIndex", 0)?;
+                let index = usize::try_from(index).map_err(|_| o.error(format!("shapeIndex {index} is negative")))?;
+                Ok(load_serialized(&file(o)?, index).map_err(mesh_error)?)
+            }
+            "rectangle" => Ok(quad_mesh()),
+            "cube" => Ok(cube_mesh()),
+            "sphere" => {
+                let center = o.point("center", Vec3::ZERO)?;
+                let radius = positive(o, "radius", 1.0)?;
+                let c = to_world.transform_point3(center);
+                let scale = to_world.transform_vector3(Vec3::X).length();
+                Err(Sphere { center: c, radius: radius * scale })
+            }
+            other => return Err(o.error(format!("the shape type '{other}' is not supported (obj, serialized, sphere, rectangle, cube)"))),
+        };
+        for p in ["interior", "exterior"] {
+            if o.children_of(Category::Medium)
+                .any(|m| m.name.as_deref() == Some(p))
+            {
+                return Err(
+                    o.error("participating media are not supported: they would change the image")
+                );
+            }
+        }
+        let material = match o.children_of(Category::Bsdf).next() {
+            Some(b) => self.material_index(b)?,
+            None => {
+                self.materials.push(Material::Diffuse {
+                    reflectance: Texture::Constant([0.5; 3]),
+                });
+                self.materials.len() - 1
+            }
+        };
+        // Spheres follow the meshes in `Scene::shapes`: their index is
+        // settled once every mesh is known (see `Scene::load`).
+        let shape_index = match &geometry {
+            Ok(_) => self.mesh_shapes.len(),
+            Err(_) => SPHERE_BASE + self.spheres.len(),
+        };
+        let emitter = match o.children_of(Category::Emitter).next() {
+            Some(e) => {
+                let e = self.emitter(e, Some(shape_index))?;
+                self.emitters.push(e);
+                Some(self.emitters.len() - 1)
+            }
+            None => None,
+        };
+        let shape = Shape {
+            material,
+            emitter,
+            declared: format!("{}: {}", o.location, o.describe()),
+        };
+        match geometry {
+            Ok(mut mesh) => {
+                mesh.transform(to_world);
+                mesh.validate(&o.location.file)
+                    .map_err(|e| o.error(e.to_string()))?;
+                self.meshes.push(mesh);
+                self.mesh_shapes.push(shape);
+            }
+            Err(sphere) => {
+                self.spheres.push(sphere);
+                self.sphere_shapes.push(shape);
+            }
+        }
+        Ok(())
+    }
+
+    fn emitter(&mut self, o: &Object, shape: Option<usize>) -> Result<Emitter, SceneError> {
+        let scale = o.float("scale", 1.0)? as f32;
+        let scaled = |c: [f32; 3]| c.map(|x| x * scale);
+        Ok(match o.kind.as_str() {
+            "area" => {
+                let shape =
+                    shape.ok_or_else(|| o.error("an area emitter must be nested in a <shape>"))?;
+                Emitter::Area {
+                    radiance: scaled(color(o, "radiance", [1.0; 3], SpectrumKind::Emission)?),
+                    shape,
+                }
+            }
+            "point" => Emitter::Point {
+                position: o
+                    .transform("toWorld")?
+                    .transform_point3(o.point("position", Vec3::ZERO)?),
+                intensity: scaled(color(o, "intensity", [1.0; 3], SpectrumKind::Emission)?),
+            },
+            "spot" => Emitter::Spot {
+                to_world: o.transform("toWorld")?,
+                intensity: scaled(color(o, "intensity", [1.0; 3], SpectrumKind::Emission)?),
+                cutoff_angle: o.float("cutoffAngle", 20.0)? as f32,
+                beam_width: o.float("beamWidth", o.float("cutoffAngle", 20.0)? * 0.75)? as f32,
+            },
+            "directional" => Emitter::Directional {
+                direction: o
+                    .transform("toWorld")?
+                    .transform_vector3(o.point("direction", Vec3::Z)?)
+                    .normalize_or_zero(),
+                irradiance: scaled(color(o, "irradiance", [1.0; 3], SpectrumKind::Emission)?),
+            },
+            "constant" => Emitter::Constant {
+                radiance: scaled(color(o, "radiance", [1.0; 3], SpectrumKind::Emission)?),
+            },
+            "envmap" => {
+                let name = o
+                    .string("filename")?
+                    .ok_or_else(|| o.error("the 'filename' property is missing"))?;
+                let path = o
+                    .location
+                    .file
+                    .parent()
+                    .unwrap_or(Path::new("."))
+                    .join(name);
+                if !path.is_file() {
+                    return Err(o.error(format!(
+                        "the environment map {} does not exist",
+                        path.display()
+                    )));
+                }
+                Emitter::EnvMap {
+                    path,
+                    scale,
+                    to_world: o.transform("toWorld")?,
+                }
+            }
+            other => return Err(o.error(format!("the emitter type '{other}' is not supported"))),
+        })
+    }
+}
+
+/// The unit square [−1, 1]² in the z = 0 plane, facing +z (Mitsuba's rectangle).
+fn quad_mesh() -> TriangleMesh {
+    TriangleMesh {
+        name: "rectangle".into(),
+        positions: vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        ..TriangleMesh::default()
+    }
+}
+
+/// The cube [−1, 1]³ with outward faces.
+fn cube_mesh() -> TriangleMesh {
+    let mut mesh = TriangleMesh {
+        name: "cube".into(),
+        ..TriangleMesh::default()
+    };
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let n = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
+            let (u, v) = (n.any_orthonormal_pair().0, n.any_orthonormal_pair().1);
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push(n + a * u + b * v);
+            }
+            // Wind so that the geometric normal points outwards.
+            let outward = (u).cross(v).dot(n) > 0.0;
+            if outward {
+                mesh.triangles
+                    .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+            } else {
+                mesh.triangles
+                    .extend([[base, base + 2, base + 1], [base, base + 3, base + 2]]);
+            }
+        }
+    }
+    mesh
+}
+
+fn camera_and_film(sensor: &Object) -> Result<(Camera, Film), SceneError> {
+    let aperture_radius = match sensor.kind.as_str() {
+        "perspective" => 0.0,
+        "thinlens" => positive(sensor, "apertureRadius", 0.03)?,
+        other => {
+            return Err(sensor.error(format!(
+                "the sensor type '{other}' is not supported (perspective, thinlens)"
+            )));
+        }
+    };
+    let camera = Camera {
+        to_world: sensor.transform("toWorld")?,
+        fov: positive(sensor, "fov", 30.0)?,
+        fov_axis: sensor.string("fovAxis")?.unwrap_or("x").to_string(),
+        near_clip: positive(sensor, "nearClip", 1e-2)?,
+        far_clip: positive(sensor, "farClip", 1e4)?,
+        aperture_radius,
+        focus_distance: positive(sensor, "focusDistance", 1.0)?,
+    };
+    if !["x", "y", "diagonal", "smaller", "larger"].contains(&camera.fov_axis.as_str()) {
+        return Err(sensor.error(format!(
+            "fovAxis '{}' is not x, y, diagonal, smaller or larger",
+            camera.fov_axis
+        )));
+    }
+    let film = sensor.children_of(Category::Film).next();
+    let size = |name: &str, default: i64| -> Result<u32, SceneError> {
+        let v = film.map_or(Ok(default), |f| f.integer(name, default))?;
+        u32::try_from(v).ok().filter(|&v| v > 0).ok_or_else(|| {
+            film.map_or_else(
+                || sensor.error("bad film size"),
+                |f| f.error(format!("'{name}' must be a positive integer, not {v}")),
+            )
+        })
+    };
+    let (width, height) = (size("width", 768)?, size("height", 576)?);
+    let crop = match film {
+        Some(f) => [
+            f.integer("cropOffsetX", 0)?,
+            f.integer("cropOffsetY", 0)?,
+            f.integer("cropWidth", i64::from(width))?,
+            f.integer("cropHeight", i64::from(height))?,
+        ],
+        None => [0, 0, i64::from(width), i64::from(height)],
+    };
+    if crop.iter().any(|&c| c < 0)
+        || crop[0] + crop[2] > i64::from(width)
+        || crop[1] + crop[3] > i64::from(height)
+    {
+        return Err(film.map_or_else(
+            || sensor.error("bad crop window"),
+            |f| {
+                f.error(format!(
+                    "the crop window {crop:?} does not fit in {width}×{height}"
+                ))
+            },
+        ));
+    }
+    let filter = film
+        .and_then(|f| f.children_of(Category::Rfilter).next())
+        .map_or("box".to_string(), |r| r.kind.clone());
+    if !["box", "gaussian", "tent"].contains(&filter.as_str()) {
+        return Err(film.map_or_else(
+            || sensor.error("bad filter"),
+            |f| {
+                f.error(format!(
+                    "the reconstruction filter '{filter}' is not supported (box, gaussian, tent)"
+                ))
+            },
+        ));
+    }
+    let spp = match sensor.children_of(Category::Sampler).next() {
+        Some(s) => {
+            let n = s.integer("sampleCount", 4)?;
+            u32::try_from(n)
+                .ok()
+                .filter(|&n| n > 0)
+                .ok_or_else(|| s.error(format!("sampleCount must be positive, not {n}")))?
+        }
+        None => 4,
+    };
+    Ok((
+        camera,
+        Film {
+            width,
+            height,
+            crop: crop.map(|c| c as u32),
+            filter,
+            spp,
+        },
+    ))
+}
+
+fn integrator(o: &Object) -> Result<IntegratorSettings, SceneError> {
+    let name = match o.kind.as_str() {
+        "path" | "mypath" => "path",
+        "direct" | "mydirect" => "direct",
+        "bdpt" | "bidir" | "mybidir" => "bdpt",
+        "mytridir" => "tridir",
+        "mlt" | "mymlt" => "mlt",
+        "mygpt" | "gpt" => "gpt",
+        "ptracer" | "myptracer" => "light",
+        other => return Err(o.error(format!("the integrator '{other}' is not known"))),
+    };
+    Ok(IntegratorSettings {
+        name: name.to_string(),
+        max_depth: o.integer("maxDepth", -1)?,
+        rr_depth: o.integer("rrDepth", 5)?,
+    })
+}
