@@ -1,0 +1,234 @@
+//! The film: pixel filters (importance-sampled, so that each sample lands in
+//! one pixel and images do not depend on the number of threads), per-pixel
+//! accumulation, a thread-safe splat buffer for light paths, and a count of
+//! the non-finite samples that were dropped.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use aether_core::Distribution;
+use aether_core::primitives::PiecewiseConstant1D;
+
+/// A reconstruction filter, sampled rather than splatted: a sample's
+/// position within the filter's footprint is drawn from the filter itself.
+#[derive(Clone, Debug)]
+pub enum Filter {
+    /// One pixel wide.
+    Box,
+    /// A tent of radius one pixel.
+    Tent,
+    /// A Gaussian of standard deviation 0.5 pixel, truncated at 2 pixels (Mitsuba's).
+    Gaussian(PiecewiseConstant1D),
+}
+
+impl Filter {
+    /// The filter named `box`, `tent` or `gaussian`.
+    #[must_use]
+    pub fn named(name: &str) -> Option<Filter> {
+        Some(match name {
+            "box" => Filter::Box,
+            "tent" => Filter::Tent,
+            "gaussian" => {
+                let weights: Vec<f64> = (0..256)
+                    .map(|i| {
+                        let x = -2.0 + 4.0 * (f64::from(i) + 0.5) / 256.0;
+                        ((-x * x / (2.0 * 0.25)).exp() - (-4.0f64 / 0.5).exp()).max(0.0)
+                    })
+                    .collect();
+                Filter::Gaussian(PiecewiseConstant1D::new(&weights).expect("positive weights"))
+            }
+            _ => return None,
+        })
+    }
+
+    /// An offset from the pixel centre, in pixels, for uniforms `u`.
+    #[must_use]
+    pub fn offset(&self, u: [f32; 2]) -> [f32; 2] {
+        match self {
+            Filter::Box => [u[0] - 0.5, u[1] - 0.5],
+            Filter::Tent => u.map(|x| {
+                if x < 0.5 {
+                    (2.0 * x).sqrt() - 1.0
+                } else {
+                    1.0 - (2.0 - 2.0 * x).sqrt()
+                }
+            }),
+            Filter::Gaussian(d) => u.map(|x| d.sample(&[x]).map_or(0.0, |s| 4.0 * s.value - 2.0)),
+        }
+    }
+}
+
+/// Accumulated radiance per pixel, and the samples that were dropped.
+#[derive(Debug)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    sums: Vec<[f64; 3]>,
+    counts: Vec<u32>,
+    dropped: AtomicU64,
+}
+
+impl Film {
+    /// A black film.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Film {
+            width,
+            height,
+            sums: vec![[0.0; 3]; n],
+            counts: vec![0; n],
+            dropped: AtomicU64::new(0),
+        }
+    }
+
+    /// Records the mean of `samples` radiance values for pixel (x, y);
+    /// non-finite or negative components drop their sample, which is counted.
+    pub fn set_pixel(&mut self, x: u32, y: u32, sum: [f64; 3], samples: u32, dropped: u64) {
+        let i = (y * self.width + x) as usize;
+        self.sums[i] = sum;
+        self.counts[i] = samples;
+        self.dropped.fetch_add(dropped, Ordering::Relaxed);
+    }
+
+    /// Samples dropped as NaN or infinite.
+    #[must_use]
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+
+    /// The image: mean radiance per pixel (black where nothing was rendered).
+    #[must_use]
+    pub fn image(&self) -> Vec<[f32; 3]> {
+        self.sums
+            .iter()
+            .zip(&self.counts)
+            .map(|(s, &n)| {
+                if n == 0 {
+                    [0.0; 3]
+                } else {
+                    s.map(|c| (c / f64::from(n)) as f32)
+                }
+            })
+            .collect()
+    }
+
+    /// Pixels rendered with at least one sample.
+    #[must_use]
+    pub fn rendered_pixels(&self) -> usize {
+        self.counts.iter().filter(|&&n| n > 0).count()
+    }
+}
+
+/// Whether a radiance sample may enter the film.
+#[must_use]
+pub fn is_valid(c: [f32; 3]) -> bool {
+    c.iter().all(|x| x.is_finite() && *x >= 0.0)
+}
+
+/// A buffer that light paths splat into from any thread (lock-free adds of
+/// f64 values). Non-finite splats are dropped and counted.
+#[derive(Debug)]
+pub struct SplatBuffer {
+    width: u32,
+    height: u32,
+    values: Vec<AtomicU64>,
+    dropped: AtomicU64,
+}
+
+impl SplatBuffer {
+    /// An empty buffer.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = 3 * width as usize * height as usize;
+        SplatBuffer {
+            width,
+            height,
+            values: (0..n).map(|_| AtomicU64::new(0f64.to_bits())).collect(),
+            dropped: AtomicU64::new(0),
+        }
+    }
+
+    /// Adds `c` at film position (x, y) in pixels; positions off the film are ignored.
+    pub fn splat(&self, x: f32, y: f32, c: [f32; 3]) {
+        if !is_valid(c) {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
+            return;
+        }
+        let i = 3 * (y as usize * self.width as usize + x as usize);
+        for (k, v) in c.iter().enumerate() {
+            let cell = &self.values[i + k];
+            let mut old = cell.load(Ordering::Relaxed);
+            loop {
+                let new = (f64::from_bits(old) + f64::from(*v)).to_bits();
+                match cell.compare_exchange_weak(old, new, Ordering::Relaxed, Ordering::Relaxed) {
+                    Ok(_) => break,
+                    Err(current) => old = current,
+                }
+            }
+        }
+    }
+
+    /// The splatted sums, scaled by `scale` (one over the number of light paths per pixel).
+    #[must_use]
+    pub fn image(&self, scale: f64) -> Vec<[f32; 3]> {
+        self.values
+            .chunks(3)
+            .map(|c| {
+                [0, 1, 2].map(|k| (f64::from_bits(c[k].load(Ordering::Relaxed)) * scale) as f32)
+            })
+            .collect()
+    }
+
+    /// Splats dropped as NaN or infinite.
+    #[must_use]
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn filters_stay_in_their_footprint_and_are_centred() {
+        for (name, radius) in [("box", 0.5), ("tent", 1.0), ("gaussian", 2.0)] {
+            let f = Filter::named(name).unwrap();
+            let mut mean = 0.0;
+            for i in 0..1000 {
+                let u = (i as f32 + 0.5) / 1000.0;
+                let o = f.offset([u, 1.0 - u]);
+                assert!(
+                    o[0].abs() <= radius + 1e-6 && o[1].abs() <= radius + 1e-6,
+                    "{name} {o:?}"
+                );
+                mean += o[0];
+            }
+            assert!((mean / 1000.0).abs() < 1e-2, "{name} {mean}");
+        }
+        assert!(Filter::named("lanczos").is_none());
+    }
+
+    #[test]
+    fn splats_add_up_across_threads_and_drop_nan() {
+        let b = SplatBuffer::new(4, 4);
+        std::thread::scope(|s| {
+            for _ in 0..4 {
+                s.spawn(|| {
+                    for _ in 0..1000 {
+                        b.splat(1.5, 2.5, [1.0, 2.0, 0.5]);
+                    }
+                });
+            }
+        });
+        b.splat(0.0, 0.0, [f32::NAN, 0.0, 0.0]);
+        let img = b.image(1.0);
+        assert_eq!(img[2 * 4 + 1], [4000.0, 8000.0, 2000.0]);
+        assert_eq!(b.dropped(), 1);
+    }
+}

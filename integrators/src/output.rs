@@ -1,0 +1,91 @@
+//! Writing images: EXR (f32 linear RGB, with spp and render time in the
+//! header) and a PNG preview (sRGB, with an exposure).
+
+use std::path::Path;
+
+use exr::prelude::*;
+
+/// Writes linear RGB to an EXR file.
+pub fn write_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[[f32; 3]],
+    spp: u32,
+    seconds: f64,
+) -> std::result::Result<(), String> {
+    let w = width as usize;
+    let channels = SpecificChannels::rgb(|Vec2(x, y)| {
+        let c: [f32; 3] = rgb[y * w + x];
+        (c[0], c[1], c[2])
+    });
+    let mut image = Image::from_channels((w, height as usize), channels);
+    image
+        .attributes
+        .other
+        .insert(Text::new_or_panic("spp"), AttributeValue::I32(spp as i32));
+    image.attributes.other.insert(
+        Text::new_or_panic("renderTimeSeconds"),
+        AttributeValue::F64(seconds),
+    );
+    image
+        .write()
+        .to_file(path)
+        .map_err(|e| format!("{}: cannot write the EXR image: {e}", path.display()))
+}
+
+fn to_srgb(c: f32) -> u8 {
+    let c = c.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Writes an sRGB PNG preview, scaled by 2^`exposure`.
+pub fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[[f32; 3]],
+    exposure: f32,
+) -> std::result::Result<(), String> {
+    let scale = exposure.exp2();
+    let bytes: Vec<u8> = rgb
+        .iter()
+        .flat_map(|c| c.map(|x| to_srgb(x * scale)))
+        .collect();
+    image::save_buffer(path, &bytes, width, height, image::ColorType::Rgb8)
+        .map_err(|e| format!("{}: cannot write the PNG preview: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trip_keeps_values_and_header() {
+        let dir = std::env::temp_dir().join(format!("aether-out-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.exr");
+        let rgb: Vec<[f32; 3]> = (0..6).map(|i| [i as f32, 0.5, 2.0]).collect();
+        write_exr(&path, 3, 2, &rgb, 16, 1.5).unwrap();
+        let image = read_first_rgba_layer_from_file(
+            &path,
+            |r, _| vec![[0f32; 3]; r.width() * r.height()],
+            |v: &mut Vec<[f32; 3]>, p: Vec2<usize>, (r, g, b, _a): (f32, f32, f32, f32)| {
+                v[p.y() * 3 + p.x()] = [r, g, b]
+            },
+        )
+        .unwrap();
+        assert_eq!(image.layer_data.channel_data.pixels, rgb);
+        assert_eq!(
+            image.attributes.other.get(&Text::new_or_panic("spp")),
+            Some(&AttributeValue::I32(16))
+        );
+        write_png(&dir.join("t.png"), 3, 2, &rgb, 0.0).unwrap();
+        assert!(std::fs::metadata(dir.join("t.png")).unwrap().len() > 0);
+    }
+}

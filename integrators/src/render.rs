@@ -1,0 +1,193 @@
+//! The render loop: tiles rendered in parallel, each pixel from its own
+//! random stream (seed and pixel index), so that an image depends on the
+//! seed and not on the threads; a progress bar, a time limit and a stop
+//! flag (Ctrl-C) that keep what was rendered.
+
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use aether_core::{Pcg32, UniformSource};
+use aether_strategies::scene::Scene;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::camera::CameraRays;
+use crate::film::{Film, Filter, is_valid};
+use crate::preview::Preview;
+
+/// Tiles are squares of this many pixels on a side.
+const TILE: u32 = 16;
+
+/// How to render.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seed of every pixel's random stream.
+    pub seed: u64,
+    /// Stop starting tiles after this long.
+    pub time_limit: Option<Duration>,
+    /// Worker threads (`None`: all cores).
+    pub threads: Option<usize>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// What a render produced.
+#[derive(Debug)]
+pub struct Rendered {
+    /// The film.
+    pub film: Film,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Camera samples taken.
+    pub samples: u64,
+    /// Rays cast (camera and shadow rays).
+    pub rays: u64,
+    /// False if the time limit or a stop request cut the render short.
+    pub complete: bool,
+}
+
+/// Renders `scene` with the stand-in direct-lighting estimator.
+pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
+    let (w, h) = (scene.film.width, scene.film.height);
+    let filter = Filter::named(&scene.film.filter)
+        .ok_or_else(|| format!("unknown filter '{}'", scene.film.filter))?;
+    let camera = CameraRays::new(scene);
+    let preview = Preview::new(scene);
+    let [cx, cy, cw, ch] = scene.film.crop;
+    let tiles: Vec<(u32, u32)> = (cy..cy + ch)
+        .step_by(TILE as usize)
+        .flat_map(|y| (cx..cx + cw).step_by(TILE as usize).map(move |x| (x, y)))
+        .collect();
+    let bar = if settings.progress {
+        ProgressBar::new(tiles.len() as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
+            .expect("valid template"),
+    );
+    let film = Mutex::new(Film::new(w, h));
+    let rays = AtomicU64::new(0);
+    let start = Instant::now();
+    let out_of_time = || {
+        stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
+    };
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = settings.threads {
+        builder = builder.num_threads(n);
+    }
+    let pool = builder
+        .build()
+        .map_err(|e| format!("cannot start the worker threads: {e}"))?;
+    let complete = pool.install(|| {
+        tiles
+            .par_iter()
+            .map(|&(tx, ty)| {
+                if out_of_time() {
+                    return false;
+                }
+                let mut local = Vec::new();
+                let mut tile_rays = 0u64;
+                for y in ty..(ty + TILE).min(cy + ch) {
+                    for x in tx..(tx + TILE).min(cx + cw) {
+                        let mut rng =
+                            Pcg32::new(settings.seed, u64::from(y) * u64::from(w) + u64::from(x));
+                        let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
+                        for _ in 0..settings.spp {
+                            let o = filter.offset([rng.next_f32(), rng.next_f32()]);
+                            let lens = [rng.next_f32(), rng.next_f32()];
+                            let (origin, dir) =
+                                camera.ray(x as f32 + 0.5 + o[0], y as f32 + 0.5 + o[1], lens);
+                            let c = preview.radiance(origin, dir, &mut rng, &mut tile_rays);
+                            if is_valid(c) {
+                                for k in 0..3 {
+                                    sum[k] += f64::from(c[k]);
+                                }
+                            } else {
+                                dropped += 1;
+                            }
+                        }
+                        local.push((x, y, sum, settings.spp, dropped));
+                    }
+                }
+                let mut film = film
+                    .lock()
+                    .expect("no thread panics while holding the film");
+                for (x, y, sum, n, dropped) in local {
+                    film.set_pixel(x, y, sum, n, dropped);
+                }
+                drop(film);
+                rays.fetch_add(tile_rays, Ordering::Relaxed);
+                bar.inc(1);
+                true
+            })
+            .collect::<Vec<bool>>()
+            .into_iter()
+            .all(|done| done)
+    });
+    bar.finish_and_clear();
+    let film = film.into_inner().expect("no thread panicked");
+    let samples = film.rendered_pixels() as u64 * u64::from(settings.spp);
+    Ok(Rendered {
+        film,
+        seconds: start.elapsed().as_secs_f64(),
+        samples,
+        rays: rays.load(Ordering::Relaxed),
+        complete,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cornell::cornell_box;
+
+    #[test]
+    fn same_seed_same_image_whatever_the_threads() {
+        let scene = cornell_box(32, 32, 4);
+        let stop = AtomicBool::new(false);
+        let run = |threads| {
+            let s = Settings {
+                spp: 4,
+                seed: 7,
+                time_limit: None,
+                threads: Some(threads),
+                progress: false,
+            };
+            render(&scene, &s, &stop).unwrap()
+        };
+        let (a, b) = (run(1), run(2));
+        assert!(a.complete && b.complete);
+        assert_eq!(a.film.image(), b.film.image());
+        assert_eq!(a.samples, 32 * 32 * 4);
+        // The box is lit: the mean of the image is well above zero and finite.
+        let mean: f64 = a
+            .film
+            .image()
+            .iter()
+            .map(|c| f64::from(c[0] + c[1] + c[2]))
+            .sum::<f64>()
+            / (3.0 * 1024.0);
+        assert!(mean > 0.05 && mean.is_finite(), "{mean}");
+    }
+
+    #[test]
+    fn a_stop_request_keeps_what_was_rendered() {
+        let scene = cornell_box(64, 64, 1);
+        let stop = AtomicBool::new(true);
+        let s = Settings {
+            spp: 1,
+            seed: 1,
+            time_limit: None,
+            threads: Some(1),
+            progress: false,
+        };
+        let r = render(&scene, &s, &stop).unwrap();
+        assert!(!r.complete);
+        assert_eq!(r.film.rendered_pixels(), 0);
+    }
+}
