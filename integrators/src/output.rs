@@ -81,9 +81,14 @@ mod tests {
         )
         .unwrap();
         assert_eq!(image.layer_data.channel_data.pixels, rgb);
+        let header = &image.layer_data.attributes.other;
         assert_eq!(
-            image.attributes.other.get(&Text::new_or_panic("spp")),
+            header.get(&Text::new_or_panic("spp")),
             Some(&AttributeValue::I32(16))
+        );
+        assert_eq!(
+            header.get(&Text::new_or_panic("renderTimeSeconds")),
+            Some(&AttributeValue::F64(1.5))
         );
         write_png(&dir.join("t.png"), 3, 2, &rgb, 0.0).unwrap();
         assert!(std::fs::metadata(dir.join("t.png")).unwrap().len() > 0);
