@@ -369,17 +369,7 @@ mod tests {
     use super::*;
 
     fn quad() -> TriangleMesh {
-        TriangleMesh {
-            name: "quad".into(),
-            positions: vec![
-                Vec3::new(-1.0, -1.0, 0.0),
-                Vec3::new(1.0, -1.0, 0.0),
-                Vec3::new(1.0, 1.0, 0.0),
-                Vec3::new(-1.0, 1.0, 0.0),
-            ],
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-            ..TriangleMesh::default()
-        }
+        TriangleMesh::rectangle()
     }
 
     #[test]

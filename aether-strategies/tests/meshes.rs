@@ -1,22 +1,12 @@
 //! Loading the Aether example meshes from ../shared, and bad mesh files.
 
+mod common;
+use common::scenes;
+
 use std::path::{Path, PathBuf};
 
 use aether_strategies::geometry::{Geometry, Primitive};
 use aether_strategies::mesh::{MeshError, load_obj, load_serialized, serialized_mesh_count};
-
-fn scenes() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/aether");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!(
-            "{} is absent: the example scenes are not loaded",
-            p.display()
-        );
-        None
-    }
-}
 
 #[test]
 fn cornell_box_objs() {

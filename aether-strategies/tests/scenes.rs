@@ -1,23 +1,13 @@
 //! Loading every Aether scene: triangle, emitter and material counts, and
 //! bad scenes with the message a user sees.
 
+mod common;
+use common::scenes;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use aether_strategies::scene::{Emitter, Material, Scene};
-
-fn scenes() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/aether");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!(
-            "{} is absent: the example scenes are not loaded",
-            p.display()
-        );
-        None
-    }
-}
 
 /// (file, triangles, spheres, emitters, materials). The Cornell box and
 /// cbox-sphere triangles follow from their mesh files (38; two spheres of

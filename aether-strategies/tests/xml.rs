@@ -1,20 +1,13 @@
 //! Reading Mitsuba XML: every Aether scene, and a catalogue of bad input,
 //! each with the message a user sees.
 
+mod common;
+use common::scenes;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use aether_strategies::scene::xml::{Category, SpectrumValue, Value, read_scene, read_scene_str};
-
-fn scenes() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/aether");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("{} is absent: the example scenes are not read", p.display());
-        None
-    }
-}
 
 fn xml_files(dir: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();

@@ -107,6 +107,22 @@ impl std::error::Error for MeshError {
 }
 
 impl TriangleMesh {
+    /// The square [−1, 1]² in the z = 0 plane, facing +z (Mitsuba's `rectangle`).
+    #[must_use]
+    pub fn rectangle() -> Self {
+        TriangleMesh {
+            name: "rectangle".into(),
+            positions: vec![
+                Vec3::new(-1.0, -1.0, 0.0),
+                Vec3::new(1.0, -1.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(-1.0, 1.0, 0.0),
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            ..TriangleMesh::default()
+        }
+    }
+
     /// Checks that positions are finite and indices in range; `path` names
     /// the file in the error.
     pub fn validate(&self, path: &Path) -> Result<(), MeshError> {

@@ -562,7 +562,7 @@ impl Loader {
                 let index = usize::try_from(index).map_err(|_| o.error(format!("shapeIndex {index} is negative")))?;
                 Ok(load_serialized(&file(o)?, index).map_err(mesh_error)?)
             }
-            "rectangle" => Ok(quad_mesh()),
+            "rectangle" => Ok(TriangleMesh::rectangle()),
             "cube" => Ok(cube_mesh()),
             "sphere" => {
                 let center = o.point("center", Vec3::ZERO)?;
@@ -684,21 +684,6 @@ impl Loader {
             }
             other => return Err(o.error(format!("the emitter type '{other}' is not supported"))),
         })
-    }
-}
-
-/// The unit square [−1, 1]² in the z = 0 plane, facing +z (Mitsuba's rectangle).
-fn quad_mesh() -> TriangleMesh {
-    TriangleMesh {
-        name: "rectangle".into(),
-        positions: vec![
-            Vec3::new(-1.0, -1.0, 0.0),
-            Vec3::new(1.0, -1.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(-1.0, 1.0, 0.0),
-        ],
-        triangles: vec![[0, 1, 2], [0, 2, 3]],
-        ..TriangleMesh::default()
     }
 }
 
