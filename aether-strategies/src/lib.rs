@@ -6,6 +6,7 @@
 //! spheres, watertight triangle tests and scale-aware ray offsets).
 #![deny(unsafe_code)]
 
+pub mod bitmap;
 pub mod geometry;
 pub mod mesh;
 pub mod scene;

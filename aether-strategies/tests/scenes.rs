@@ -166,4 +166,32 @@ fn bad_scenes_name_the_file_the_line_and_the_element() {
         "<scene>{camera}\n<shape type=\"sphere\"><bsdf type=\"diffuse\"><texture name=\"reflectance\" type=\"bitmap\"><string name=\"filename\" value=\"missing.png\"/></texture></bsdf></shape></scene>"
     ));
     assert!(e.contains("missing.png does not exist"), "{e}");
+    let dir = std::env::temp_dir().join(format!("aether-scene-{}", std::process::id()));
+    std::fs::write(dir.join("broken.png"), b"not a png").unwrap();
+    let e = load_str(&format!(
+        "<scene>{camera}\n<shape type=\"sphere\"><bsdf type=\"diffuse\">\n<texture name=\"reflectance\" type=\"bitmap\"><string name=\"filename\" value=\"broken.png\"/></texture></bsdf></shape></scene>"
+    ));
+    assert!(
+        e.contains(":3: <texture type=\"bitmap\">")
+            && e.contains("broken.png: cannot read the image"),
+        "{e}"
+    );
+}
+
+#[test]
+fn environment_maps_are_read_from_exr() {
+    let dir = std::env::temp_dir().join(format!("aether-envmap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    exr::prelude::write_rgb_file(dir.join("sky.exr"), 4, 2, |x, y| {
+        (x as f32, y as f32, 0.5f32)
+    })
+    .unwrap();
+    let xml = "<scene><sensor type=\"perspective\"/><emitter type=\"envmap\"><string name=\"filename\" value=\"sky.exr\"/><float name=\"scale\" value=\"2\"/></emitter></scene>";
+    std::fs::write(dir.join("env.xml"), xml).unwrap();
+    let scene = Scene::load(&dir.join("env.xml"), &HashMap::new()).unwrap();
+    let Emitter::EnvMap { image, scale, .. } = &scene.emitters[0] else {
+        panic!("{:?}", scene.emitters)
+    };
+    assert_eq!((image.width, image.height, *scale), (4, 2, 2.0));
+    assert_eq!(image.texels[1 * 4 + 3], [3.0, 1.0, 0.5]);
 }

@@ -8,6 +8,7 @@ use std::sync::Arc;
 use glam::{Mat4, Vec3};
 
 use super::xml::{Category, Object, SceneError, Value, Warning, read_scene};
+use crate::bitmap::Bitmap;
 use crate::geometry::{Geometry, Sphere};
 use crate::mesh::{TriangleMesh, load_obj, load_serialized};
 use crate::spectrum::{SpectrumKind, to_linear_rgb};
@@ -19,8 +20,10 @@ pub enum Texture {
     Constant([f32; 3]),
     /// An image, addressed by uv × `uv_scale` + offset.
     Bitmap {
-        /// The image file (checked to exist).
+        /// The image file.
         path: PathBuf,
+        /// Its texels.
+        image: Arc<Bitmap>,
         /// Scale of uv.
         uv_scale: [f32; 2],
         /// Offset of uv.
@@ -28,6 +31,26 @@ pub enum Texture {
     },
     /// Another texture times a factor.
     Scale(f32, Box<Texture>),
+}
+
+impl Texture {
+    /// The colour at texture coordinates `uv`.
+    #[must_use]
+    pub fn eval(&self, uv: [f32; 2]) -> [f32; 3] {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Bitmap {
+                image,
+                uv_scale,
+                uv_offset,
+                ..
+            } => image.lookup(
+                uv[0] * uv_scale[0] + uv_offset[0],
+                uv[1] * uv_scale[1] + uv_offset[1],
+            ),
+            Texture::Scale(s, inner) => inner.eval(uv).map(|c| c * s),
+        }
+    }
 }
 
 /// Microfacet distribution names of Mitsuba.
@@ -67,8 +90,9 @@ pub enum Material {
     },
     /// Smooth or rough metal.
     Conductor {
-        /// Named metal (Mitsuba's `material`), or `None` for a perfect mirror.
-        metal: Option<String>,
+        /// Complex index of refraction (η, k) per channel, or `None` for a
+        /// perfect mirror (Mitsuba's `material="none"`).
+        ior: Option<([f32; 3], [f32; 3])>,
         /// Tint.
         specular_reflectance: [f32; 3],
         /// `None` for a smooth (Dirac) interface.
@@ -140,8 +164,10 @@ pub enum Emitter {
     },
     /// An environment map.
     EnvMap {
-        /// The EXR file (checked to exist).
+        /// The EXR file.
         path: PathBuf,
+        /// Its texels (latitude-longitude).
+        image: Arc<Bitmap>,
         /// Scale.
         scale: f32,
         /// Object to world.
@@ -444,8 +470,10 @@ fn texture_object(t: &Object) -> Result<Texture, SceneError> {
                 t.float("uoffset", 0.0)? as f32,
                 t.float("voffset", 0.0)? as f32,
             ];
+            let image = Arc::new(Bitmap::load(&path).map_err(|e| t.error(e))?);
             Ok(Texture::Bitmap {
                 path,
+                image,
                 uv_scale,
                 uv_offset,
             })
@@ -466,6 +494,20 @@ fn texture_object(t: &Object) -> Result<Texture, SceneError> {
     }
 }
 
+/// Complex indices of refraction (η, k) of Mitsuba's named metals in linear
+/// sRGB, as Mitsuba 3.9.1 (`scalar_rgb`) converts its measured spectra;
+/// read with its Python module.
+fn metal(name: &str) -> Option<([f32; 3], [f32; 3])> {
+    Some(match name {
+        "Al" => ([1.6575, 0.880405, 0.521244], [9.22381, 6.2695, 4.837]),
+        "Cu" => ([0.201005, 0.92375, 1.10222], [3.91326, 2.45305, 2.14209]),
+        "Au" => ([0.143036, 0.375307, 1.44205], [3.983, 2.38556, 1.60336]),
+        "Ag" => ([0.155276, 0.116728, 0.138388], [4.82835, 3.12222, 2.1469]),
+        "Cr" => ([4.36967, 2.91651, 1.6549], [5.20655, 4.23131, 3.7547]),
+        _ => return None,
+    })
+}
+
 fn material(o: &Object) -> Result<Material, SceneError> {
     let nested = || {
         o.children_of(Category::Bsdf)
@@ -482,16 +524,23 @@ fn material(o: &Object) -> Result<Material, SceneError> {
             roughness: roughness(o)?,
         },
         "conductor" | "roughconductor" => {
-            let metal = o.string("material")?.map(str::to_string);
-            if let Some(m) = &metal {
-                if !["Al", "Cu", "Au", "Ag", "Cr", "none"].contains(&m.as_str()) {
-                    return Err(o.error(format!(
-                        "the metal '{m}' is not known (Al, Cu, Au, Ag, Cr, none)"
-                    )));
+            let ior = if o.property("eta").is_some() || o.property("k").is_some() {
+                Some((
+                    color(o, "eta", [0.0; 3], SpectrumKind::Reflectance)?,
+                    color(o, "k", [1.0; 3], SpectrumKind::Reflectance)?,
+                ))
+            } else {
+                match o.string("material")?.unwrap_or("Cu") {
+                    "none" => None,
+                    name => Some(metal(name).ok_or_else(|| {
+                        o.error(format!(
+                            "the metal '{name}' is not known (Al, Cu, Au, Ag, Cr, none)"
+                        ))
+                    })?),
                 }
-            }
+            };
             Material::Conductor {
-                metal: metal.filter(|m| m != "none"),
+                ior,
                 specular_reflectance: color(
                     o,
                     "specularReflectance",
@@ -676,8 +725,10 @@ impl Loader {
                         path.display()
                     )));
                 }
+                let image = Arc::new(Bitmap::load(&path).map_err(|e| o.error(e))?);
                 Emitter::EnvMap {
                     path,
+                    image,
                     scale,
                     to_world: o.transform("toWorld")?,
                 }
