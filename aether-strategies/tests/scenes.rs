@@ -196,3 +196,39 @@ fn environment_maps_are_read_from_exr() {
     let (x, y) = (3, 1);
     assert_eq!(image.texels[y * 4 + x], [3.0, 1.0, 0.5]);
 }
+
+#[test]
+fn the_keyhole_is_declared_as_a_portal() {
+    let Some(dir) = scenes() else { return };
+    let with_portal =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cbox_tridir_keyhole.xml");
+    let scene = Scene::load(&with_portal, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    let plain = Scene::load(&dir.join("cbox/cbox_tridir.xml"), &HashMap::new()).unwrap();
+    assert_eq!(scene.portals.len(), 1);
+    assert!(plain.portals.is_empty());
+    // The portal is not rendered: the geometry is that of the plain scene.
+    assert_eq!(
+        scene.geometry.triangle_count(),
+        plain.geometry.triangle_count()
+    );
+    let hole = &scene.portals[0];
+    // A small opening in the ceiling (about 0.33 on a side, at y ≈ 1.99).
+    assert!(hole.area() > 0.05 && hole.area() < 0.2, "{}", hole.area());
+    assert!(
+        hole.positions.iter().all(|p| (p.y - 1.99).abs() < 0.05),
+        "{:?}",
+        hole.positions
+    );
+    let e = Scene::load(&write_temp("portal-sphere.xml", "<scene><sensor type=\"perspective\"/>\n<shape type=\"sphere\"><boolean name=\"portal\" value=\"true\"/></shape></scene>"), &HashMap::new()).unwrap_err();
+    assert!(
+        e.to_string().contains(":2:") && e.to_string().contains("a portal must be a mesh"),
+        "{e}"
+    );
+}
+
+fn write_temp(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("aether-portal-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(name), text).unwrap();
+    dir.join(name)
+}

@@ -248,6 +248,10 @@ pub struct Scene {
     pub film: Film,
     /// Integrator settings.
     pub integrator: IntegratorSettings,
+    /// Portal (keyhole) openings, in world space: shapes declared with
+    /// `<boolean name="portal" value="true"/>`. They are not rendered; the
+    /// tridirectional integrator samples segments through them.
+    pub portals: Vec<TriangleMesh>,
     /// What was skipped or adjusted while loading.
     pub warnings: Vec<Warning>,
 }
@@ -257,6 +261,7 @@ impl Scene {
     pub fn load(path: &Path, params: &HashMap<String, String>) -> Result<Scene, SceneError> {
         let file = read_scene(path, params)?;
         let mut loader = Loader {
+            portals: Vec::new(),
             meshes: Vec::new(),
             spheres: Vec::new(),
             mesh_shapes: Vec::new(),
@@ -309,6 +314,7 @@ impl Scene {
             materials,
             mut emitters,
             warnings,
+            portals,
             ..
         } = loader;
         for e in &mut emitters {
@@ -327,6 +333,7 @@ impl Scene {
             camera,
             film,
             integrator,
+            portals,
             warnings,
         })
     }
@@ -336,6 +343,7 @@ impl Scene {
 const SPHERE_BASE: usize = usize::MAX / 2;
 
 struct Loader {
+    portals: Vec<TriangleMesh>,
     meshes: Vec<TriangleMesh>,
     spheres: Vec<Sphere>,
     mesh_shapes: Vec<Shape>,
@@ -622,6 +630,19 @@ impl Loader {
             }
             other => return Err(o.error(format!("the shape type '{other}' is not supported (obj, serialized, sphere, rectangle, cube)"))),
         };
+        if o.boolean("portal", false)? {
+            let Ok(mut mesh) = geometry else {
+                return Err(o.error("a portal must be a mesh, not a sphere"));
+            };
+            if o.children_of(Category::Emitter).next().is_some() {
+                return Err(o.error("a portal cannot emit light"));
+            }
+            mesh.transform(to_world);
+            mesh.validate(&o.location.file)
+                .map_err(|e| o.error(e.to_string()))?;
+            self.portals.push(mesh);
+            return Ok(());
+        }
         for p in ["interior", "exterior"] {
             if o.children_of(Category::Medium)
                 .any(|m| m.name.as_deref() == Some(p))
