@@ -180,6 +180,7 @@ pub fn cornell_box(width: u32, height: u32, spp: u32) -> Scene {
             max_depth: -1,
             rr_depth: 5,
         },
+        portals: Vec::new(),
         warnings: Vec::new(),
     }
 }
