@@ -106,3 +106,33 @@ fn bad_meshes_name_the_file_and_the_problem() {
     let e = load_serialized(&temp("cut.serialized", &truncated), 0).unwrap_err();
     assert!(e.to_string().contains("cut.serialized"), "{e}");
 }
+
+#[test]
+fn obj_materials_come_from_the_mtl_library() {
+    let dir = std::env::temp_dir().join(format!("aether-mtl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl paint\nKd 0.8 0.2 0.1\n").unwrap();
+    std::fs::write(
+        dir.join("m.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl paint\nf 1 2 3\n",
+    )
+    .unwrap();
+    let (mesh, materials) =
+        aether_strategies::mesh::load_obj_with_materials(&dir.join("m.obj")).unwrap();
+    assert_eq!(mesh.triangles.len(), 1);
+    assert_eq!(materials[0].name, "paint");
+    assert_eq!(materials[0].diffuse, [0.8, 0.2, 0.1]);
+    // A scene shape without a <bsdf> takes the MTL colour.
+    std::fs::write(dir.join("s.xml"), "<scene><sensor type=\"perspective\"/><shape type=\"obj\"><string name=\"filename\" value=\"m.obj\"/></shape></scene>").unwrap();
+    let scene = aether_strategies::scene::Scene::load(
+        &dir.join("s.xml"),
+        &std::collections::HashMap::new(),
+    )
+    .unwrap();
+    assert_eq!(
+        scene.materials[0],
+        aether_strategies::scene::Material::Diffuse {
+            reflectance: aether_strategies::scene::Texture::Constant([0.8, 0.2, 0.1])
+        }
+    );
+}

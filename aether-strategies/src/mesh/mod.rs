@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec2, Vec3};
 
-pub use obj::load_obj;
+pub use obj::{ObjMaterial, load_obj, load_obj_with_materials};
 pub use serialized::{load_serialized, serialized_mesh_count};
 
 /// A triangle mesh in world or object space.

@@ -1,19 +1,36 @@
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
 use super::{MeshError, TriangleMesh};
 
+/// A material from an OBJ file's MTL library: its diffuse colour and map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjMaterial {
+    /// Its name in the library.
+    pub name: String,
+    /// `Kd`, or 0.5 grey.
+    pub diffuse: [f32; 3],
+    /// `map_Kd`, relative to the OBJ file's folder.
+    pub diffuse_map: Option<PathBuf>,
+}
+
 /// Loads every object of a Wavefront OBJ file into one mesh (as Mitsuba's
 /// `obj` shape does), triangulating polygons. Texture coordinates keep the
 /// OBJ convention (v up).
 pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
+    load_obj_with_materials(path).map(|(mesh, _)| mesh)
+}
+
+/// As [`load_obj`], with the materials of the file's MTL library (none if
+/// it names no library or the library cannot be read).
+pub fn load_obj_with_materials(path: &Path) -> Result<(TriangleMesh, Vec<ObjMaterial>), MeshError> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..tobj::LoadOptions::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
+    let (models, materials) = tobj::load_obj(path, &options).map_err(|e| match e {
         tobj::LoadError::OpenFileFailed => MeshError::Io {
             path: path.to_owned(),
             source: std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open the file"),
@@ -64,5 +81,15 @@ pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
         });
     }
     mesh.validate(path)?;
-    Ok(mesh)
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let materials = materials
+        .unwrap_or_default()
+        .into_iter()
+        .map(|m| ObjMaterial {
+            name: m.name,
+            diffuse: m.diffuse.unwrap_or([0.5; 3]),
+            diffuse_map: m.diffuse_texture.map(|t| folder.join(t)),
+        })
+        .collect();
+    Ok((mesh, materials))
 }

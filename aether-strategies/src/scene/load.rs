@@ -10,7 +10,7 @@ use glam::{Mat4, Vec3};
 use super::xml::{Category, Object, SceneError, Value, Warning, read_scene};
 use crate::bitmap::Bitmap;
 use crate::geometry::{Geometry, Sphere};
-use crate::mesh::{TriangleMesh, load_obj, load_serialized};
+use crate::mesh::{ObjMaterial, TriangleMesh, load_obj_with_materials, load_serialized};
 use crate::spectrum::{SpectrumKind, to_linear_rgb};
 
 /// A spatially varying or constant colour parameter.
@@ -612,8 +612,13 @@ impl Loader {
             Ok(base.join(name))
         };
         let mesh_error = |e: crate::mesh::MeshError| o.error(e.to_string());
+        let mut mtl = None;
         let geometry: Result<TriangleMesh, Sphere> = match o.kind.as_str() {
-            "obj" => Ok(load_obj(&file(o)?).map_err(mesh_error)?),
+            "obj" => {
+                let (mesh, materials) = load_obj_with_materials(&file(o)?).map_err(mesh_error)?;
+                mtl = materials.into_iter().next();
+                Ok(mesh)
+            }
             "serialized" => {
                 let index = o.integer("shapeIndex", 0)?;
                 let index = usize::try_from(index).map_err(|_| o.error(format!("shapeIndex {index} is negative")))?;
@@ -655,9 +660,24 @@ impl Loader {
         let material = match o.children_of(Category::Bsdf).next() {
             Some(b) => self.material_index(b)?,
             None => {
-                self.materials.push(Material::Diffuse {
-                    reflectance: Texture::Constant([0.5; 3]),
-                });
+                // Without a <bsdf>, an OBJ's own MTL material gives its diffuse colour or map.
+                let reflectance = match mtl {
+                    Some(ObjMaterial {
+                        diffuse_map: Some(map),
+                        ..
+                    }) => {
+                        let image = Arc::new(Bitmap::load(&map).map_err(|e| o.error(e))?);
+                        Texture::Bitmap {
+                            path: map,
+                            image,
+                            uv_scale: [1.0; 2],
+                            uv_offset: [0.0; 2],
+                        }
+                    }
+                    Some(ObjMaterial { diffuse, .. }) => Texture::Constant(diffuse),
+                    None => Texture::Constant([0.5; 3]),
+                };
+                self.materials.push(Material::Diffuse { reflectance });
                 self.materials.len() - 1
             }
         };
