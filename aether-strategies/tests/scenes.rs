@@ -232,3 +232,22 @@ fn write_temp(name: &str, text: &str) -> PathBuf {
     std::fs::write(dir.join(name), text).unwrap();
     dir.join(name)
 }
+
+#[test]
+fn unused_properties_warn_and_flip_normals_flips() {
+    let xml = "<scene><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><float name=\"fob\" value=\"3\"/></sensor>\n<shape type=\"rectangle\"><boolean name=\"flipNormals\" value=\"true\"/></shape></scene>";
+    let scene = Scene::load(&write_temp("unused.xml", xml), &HashMap::new()).unwrap();
+    let messages: Vec<String> = scene.warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(messages.len(), 1, "{messages:?}");
+    assert!(
+        messages[0].contains(
+            ":1: warning: the property 'fob' of <sensor type=\"perspective\"> is not used"
+        ),
+        "{messages:?}"
+    );
+    let [a, b, c] = scene.geometry.meshes()[0].corners(0);
+    assert!(
+        (b - a).cross(c - a).z < 0.0,
+        "the rectangle faces -z once flipped"
+    );
+}

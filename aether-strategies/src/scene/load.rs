@@ -306,6 +306,16 @@ impl Scene {
                 rr_depth: 5,
             },
         };
+        // Only the objects the scene uses: declared-but-unreferenced BSDFs
+        // and textures are not reported.
+        for child in root.children.iter().filter(|c| {
+            matches!(
+                c.category,
+                Category::Shape | Category::Emitter | Category::Sensor | Category::Integrator
+            )
+        }) {
+            loader.warnings.extend(child.unread());
+        }
         let Loader {
             meshes,
             spheres,
@@ -634,6 +644,26 @@ impl Loader {
                 Err(Sphere { center: c, radius: radius * scale })
             }
             other => return Err(o.error(format!("the shape type '{other}' is not supported (obj, serialized, sphere, rectangle, cube)"))),
+        };
+        let geometry = match geometry {
+            Ok(mut mesh) => {
+                if o.boolean("faceNormals", false)? {
+                    mesh.normals.clear();
+                }
+                if o.boolean("flipNormals", false)? {
+                    mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+                    mesh.normals.iter_mut().for_each(|n| *n = -*n);
+                }
+                Ok(mesh)
+            }
+            sphere => {
+                if o.boolean("flipNormals", false)? {
+                    return Err(o.error(
+                        "flipNormals on a sphere is not supported: it would change the image",
+                    ));
+                }
+                sphere
+            }
         };
         if o.boolean("portal", false)? {
             let Ok(mut mesh) = geometry else {

@@ -121,6 +121,37 @@ pub struct Property {
     pub location: Location,
 }
 
+/// The set of property names read from an object (thread-safe; equal and
+/// cloned as sets, ignored by equality of objects).
+#[derive(Debug, Default)]
+pub struct ReadMarks(std::sync::Mutex<std::collections::HashSet<String>>);
+
+impl Clone for ReadMarks {
+    fn clone(&self) -> Self {
+        ReadMarks(std::sync::Mutex::new(
+            self.0.lock().map(|s| s.clone()).unwrap_or_default(),
+        ))
+    }
+}
+
+impl PartialEq for ReadMarks {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
+}
+
+impl ReadMarks {
+    fn mark(&self, name: &str) {
+        if let Ok(mut s) = self.0.lock() {
+            s.insert(name.to_string());
+        }
+    }
+
+    fn contains(&self, name: &str) -> bool {
+        self.0.lock().is_ok_and(|s| s.contains(name))
+    }
+}
+
 /// The kinds of plugin a scene declares.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Category {
@@ -189,6 +220,9 @@ pub struct Object {
     pub children: Vec<Arc<Object>>,
     /// Where it was declared.
     pub location: Location,
+    /// Names of the properties the loader has read, so that the others can
+    /// be reported.
+    pub read: ReadMarks,
 }
 
 impl Object {
@@ -206,7 +240,31 @@ impl Object {
     /// The property `name`, if set.
     #[must_use]
     pub fn property(&self, name: &str) -> Option<&Property> {
+        self.read.mark(name);
         self.properties.iter().find(|p| p.name == name)
+    }
+
+    /// Warnings for the properties of this object and its nested objects
+    /// that nothing read: a misspelt or unsupported parameter.
+    #[must_use]
+    pub fn unread(&self) -> Vec<Warning> {
+        let mut out: Vec<Warning> = self
+            .properties
+            .iter()
+            .filter(|p| !self.read.contains(&p.name))
+            .map(|p| Warning {
+                location: p.location.clone(),
+                message: format!(
+                    "the property '{}' of {} is not used",
+                    p.name,
+                    self.describe()
+                ),
+            })
+            .collect();
+        for c in &self.children {
+            out.extend(c.unread());
+        }
+        out
     }
 
     /// Nested objects of a category.
@@ -463,6 +521,7 @@ impl Reader {
             properties: Vec::new(),
             children: Vec::new(),
             location: cx.location(root),
+            read: ReadMarks::default(),
         };
         self.body(&cx, root, &mut scene)?;
         Ok(scene)
@@ -618,6 +677,7 @@ impl Reader {
             properties: Vec::new(),
             children: Vec::new(),
             location: cx.location(node),
+            read: ReadMarks::default(),
         };
         self.body(cx, node, &mut object)?;
         Ok(object)
