@@ -136,3 +136,19 @@ fn obj_materials_come_from_the_mtl_library() {
         }
     );
 }
+
+#[test]
+fn out_of_range_indices_name_the_triangle() {
+    let mut mesh = aether_strategies::mesh::TriangleMesh::rectangle();
+    mesh.triangles[1] = [0, 2, 7];
+    let e = mesh
+        .validate(Path::new("scenes/broken.serialized"))
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "scenes/broken.serialized: mesh 'rectangle': triangle 1 refers to vertex 7, but the mesh has 4 vertices"
+    );
+    let bad_obj = temp("range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+    let e = load_obj(&bad_obj).unwrap_err();
+    assert!(e.to_string().contains("range.obj"), "{e}");
+}
