@@ -11,5 +11,6 @@ pub mod geometry;
 pub mod mesh;
 pub mod scene;
 pub mod spectrum;
+pub mod vertex;
 
 pub use aether_core as core;

@@ -34,6 +34,7 @@ where
     let mut observed = vec![0.0; chart.cells()];
     let mut atoms: Vec<Atom> = Vec::new();
     let mut void = 0.0;
+    let mut off_chart = 0.0;
     let mut rng = Pcg32::new(config.seed, 0xc41);
     let mut u = vec![0.0f32; d.dims()];
     for _ in 0..config.samples {
@@ -45,6 +46,9 @@ where
         let continuous = !s.density.is_dirac() && s.density.measure() != Measure::Discrete;
         match chart.cell_of(&s.value) {
             Some(c) if continuous || s.density.measure() == Measure::Discrete => observed[c] += 1.0,
+            // A continuous value off the chart counts as "elsewhere" (no atom
+            // search: there may be as many of them as samples).
+            None if continuous => off_chart += 1.0,
             _ => {
                 let mut coords = Coords::new();
                 s.value.embed(&mut coords);
@@ -85,7 +89,7 @@ where
         .collect();
     let mut integral = cells.iter().map(|c| c.2).sum::<f64>() / n;
     // Samples off the chart with a continuous density count as "elsewhere".
-    let mut elsewhere = void;
+    let mut elsewhere = void + off_chart;
     for a in &atoms {
         if a.mass > 0.0 {
             cells.push((

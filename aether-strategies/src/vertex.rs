@@ -1,0 +1,151 @@
+//! The path vertex of a loaded scene, and ray casting that produces it.
+
+use aether_core::{Geometry as Place, RayCaster, Vertex};
+use glam::{Vec2, Vec3};
+
+use crate::geometry::{Hit, Primitive, offset_origin};
+use crate::scene::Scene;
+
+/// What a vertex lies on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Site {
+    /// Shape `shape` of [`Scene::shapes`], at `primitive`.
+    Surface {
+        /// Index into `Scene::shapes`.
+        shape: u32,
+        /// The triangle or sphere hit.
+        primitive: Primitive,
+    },
+    /// An isolated point: a pinhole or a point light (index into `Scene::emitters`).
+    Point {
+        /// The emitter, if it is a light.
+        emitter: Option<u32>,
+    },
+    /// An environment at infinity in `direction`.
+    Environment {
+        /// Unit direction from the scene towards the environment.
+        direction: Vec3,
+    },
+}
+
+/// A path vertex of a loaded scene: position, normals, texture
+/// coordinates, the rounding-error bound of the position, and its site.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneVertex {
+    /// Position.
+    pub position: Vec3,
+    /// Geometric normal (zero for points and environments).
+    pub geometric_normal: Vec3,
+    /// Shading normal.
+    pub shading_normal: Vec3,
+    /// Texture coordinates.
+    pub uv: Vec2,
+    /// Absolute rounding-error bound per coordinate of `position`.
+    pub error: Vec3,
+    /// What it lies on.
+    pub site: Site,
+}
+
+impl SceneVertex {
+    /// The vertex of a ray hit on shape `shape`.
+    #[must_use]
+    pub fn from_hit(hit: &Hit, shape: u32) -> Self {
+        SceneVertex {
+            position: hit.position,
+            geometric_normal: hit.geometric_normal,
+            shading_normal: hit.shading_normal,
+            uv: hit.uv,
+            error: hit.error,
+            site: Site::Surface {
+                shape,
+                primitive: hit.primitive,
+            },
+        }
+    }
+
+    /// An isolated point (a pinhole, a point light).
+    #[must_use]
+    pub fn point(position: Vec3, emitter: Option<u32>) -> Self {
+        SceneVertex {
+            position,
+            geometric_normal: Vec3::ZERO,
+            shading_normal: Vec3::ZERO,
+            uv: Vec2::ZERO,
+            error: Vec3::ZERO,
+            site: Site::Point { emitter },
+        }
+    }
+
+    /// The index of the shape the vertex lies on.
+    #[must_use]
+    pub fn shape(&self) -> Option<usize> {
+        match self.site {
+            Site::Surface { shape, .. } => Some(shape as usize),
+            _ => None,
+        }
+    }
+}
+
+impl Vertex for SceneVertex {
+    fn position(&self) -> Vec3 {
+        self.position
+    }
+    fn geometry(&self) -> Place {
+        match self.site {
+            Site::Surface { .. } => Place::Surface {
+                normal: self.geometric_normal,
+            },
+            Site::Point { .. } => Place::Point,
+            Site::Environment { direction } => Place::AtInfinity { direction },
+        }
+    }
+}
+
+impl Scene {
+    /// The index in [`Scene::shapes`] of the shape a hit lies on.
+    #[must_use]
+    pub fn shape_of(&self, primitive: Primitive) -> u32 {
+        match primitive {
+            Primitive::Triangle { mesh, .. } => mesh,
+            Primitive::Sphere(s) => self.geometry.meshes().len() as u32 + s,
+        }
+    }
+}
+
+/// Rays leave surface vertices offset past their rounding error, and
+/// isolated points from the point itself. A ray that escapes meets the
+/// environment if the scene has one.
+impl RayCaster<SceneVertex> for Scene {
+    fn cast(&self, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
+        let origin = match from.site {
+            Site::Surface { .. } => {
+                offset_origin(from.position, from.error, from.geometric_normal, direction)
+            }
+            _ => from.position,
+        };
+        match self.geometry.intersect(origin, direction, f32::INFINITY) {
+            Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
+            None => self.has_environment().then_some(SceneVertex {
+                position: Vec3::ZERO,
+                geometric_normal: Vec3::ZERO,
+                shading_normal: Vec3::ZERO,
+                uv: Vec2::ZERO,
+                error: Vec3::ZERO,
+                site: Site::Environment { direction },
+            }),
+        }
+    }
+}
+
+impl Scene {
+    /// True if the scene has a constant or environment-map emitter.
+    #[must_use]
+    pub fn has_environment(&self) -> bool {
+        self.emitters.iter().any(|e| {
+            matches!(
+                e,
+                crate::scene::Emitter::Constant { .. } | crate::scene::Emitter::EnvMap { .. }
+            )
+        })
+    }
+}
