@@ -177,20 +177,28 @@ where
             .fold(Density::zero(Measure::Discrete), |a, b| a + b)
     }
     fn invert(&self, v: &D::Value) -> Option<Uniforms> {
+        // The pre-image in the branch that contributes most: a branch whose
+        // density is merely positive may be so unlikely there that its
+        // inverse does not survive rounding.
         let choice = self.choice.borrow();
-        (0..choice.len())
+        let best = (0..choice.len())
             .filter(|&i| choice.probability(i) > 0.0)
-            .find_map(|i| {
-                let branch = (self.branch)(i);
-                if branch.density(v).is_zero() {
-                    return None;
-                }
-                let u = branch.invert(v)?;
-                Some(with_first(
-                    &u,
-                    choice.unselect(i, u.first().copied().unwrap_or(0.5)),
-                ))
+            .map(|i| {
+                let d = Density::discrete(choice.probability(i)) * (self.branch)(i).density(v);
+                (i, d)
             })
+            .filter(|(_, d)| !d.is_zero())
+            .max_by(|(_, a), (_, b)| {
+                a.dirac_order()
+                    .cmp(&b.dirac_order())
+                    .then(a.value().total_cmp(&b.value()))
+            })?;
+        let i = best.0;
+        let u = (self.branch)(i).invert(v)?;
+        Some(with_first(
+            &u,
+            choice.unselect(i, u.first().copied().unwrap_or(0.5)),
+        ))
     }
     fn has_overlapping_branches(&self) -> bool {
         true

@@ -7,6 +7,7 @@
 #![deny(unsafe_code)]
 
 pub mod bitmap;
+pub mod bsdf;
 pub mod geometry;
 pub mod mesh;
 pub mod scene;

@@ -7,6 +7,13 @@ use crate::density::Measure;
 use crate::distribution::{Coords, Distribution, Embed};
 use crate::rng::{Pcg32, UniformSource};
 
+/// Samples this close (relative to their scale) to an atom with the same
+/// mass belong to it: a Dirac lobe matches directions within
+/// [`DiracDirection::TOLERANCE`](crate::primitives::DiracDirection::TOLERANCE)
+/// (an angle of about 1.4e-3), so a continuous sample that lands that
+/// close records the Dirac's density.
+const ATOM_TOLERANCE: f64 = 2e-3;
+
 /// Cells are pooled until their expected count reaches this.
 const MIN_EXPECTED: f64 = 5.0;
 
@@ -58,7 +65,7 @@ where
                         && a.coords
                             .iter()
                             .zip(&coords)
-                            .all(|(x, y)| (x - y).abs() <= 1e-4 * x.abs().max(1.0));
+                            .all(|(x, y)| (x - y).abs() <= ATOM_TOLERANCE * x.abs().max(1.0));
                     close && (a.mass - mass).abs() <= 1e-9 * mass.max(1e-300)
                 });
                 match found {
