@@ -116,25 +116,22 @@ fn main() {
     let fixture = BidirectionalFixture::new(&scene);
     let (camera, look, bounce) = (&fixture.camera, &fixture.look, &fixture.bounce);
     let mut rng = Pcg32::new(3, 0);
-    let mut paths = Vec::new();
+    let camera_path = |rng: &mut Pcg32| {
+        let mut cam = RandomSequence::new();
+        cam.append(camera)
+            .append(look)
+            .append(bounce)
+            .append(bounce)
+            .append(bounce);
+        cam.sample(rng);
+        cam
+    };
     let sample = time(N / 4, |_| {
-        let mut cam = RandomSequence::new();
-        cam.append(camera)
-            .append(look)
-            .append(bounce)
-            .append(bounce)
-            .append(bounce);
-        cam.sample(&mut rng);
-        black_box(&cam);
+        black_box(camera_path(&mut rng));
     });
+    let mut paths = Vec::new();
     while paths.len() < 1000 {
-        let mut cam = RandomSequence::new();
-        cam.append(camera)
-            .append(look)
-            .append(bounce)
-            .append(bounce)
-            .append(bounce);
-        cam.sample(&mut rng);
+        let cam = camera_path(&mut rng);
         if cam.len() == 5 {
             paths.push(cam);
         }
