@@ -5,10 +5,11 @@
 
 use aether_strategies::geometry::Geometry;
 use aether_strategies::mesh::TriangleMesh;
+use aether_strategies::scene::xml::look_at;
 use aether_strategies::scene::{
     Camera, Emitter, Film, IntegratorSettings, Material, Scene, Shape, Texture,
 };
-use glam::{Mat4, Vec3};
+use glam::{DVec3, Vec3};
 
 /// A mesh of quads, each given by four corners in order.
 fn quads(name: &str, corners: &[[[f32; 3]; 4]]) -> TriangleMesh {
@@ -145,13 +146,13 @@ pub fn cornell_box(width: u32, height: u32, spp: u32) -> Scene {
         .collect();
     shapes[7].emitter = Some(0);
     let camera = Camera {
-        // Mitsuba's look-at frame: x = up × forward (to the left), y up, z forward.
-        to_world: Mat4::from_cols(
-            Vec3::Y.cross(Vec3::Z).extend(0.0),
-            Vec3::Y.extend(0.0),
-            Vec3::Z.extend(0.0),
-            Vec3::new(278.0, 273.0, -800.0).extend(1.0),
-        ),
+        to_world: look_at(
+            DVec3::new(278.0, 273.0, -800.0),
+            DVec3::new(278.0, 273.0, -799.0),
+            DVec3::Y,
+        )
+        .expect("a valid frame")
+        .as_mat4(),
         fov: 39.3077,
         fov_axis: "x".to_string(),
         near_clip: 10.0,

@@ -910,8 +910,10 @@ impl Reader {
     }
 }
 
-/// Mitsuba's look-at: local +z towards the target, +y up, x to the left.
-fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
+/// Mitsuba's look-at transform: local +z towards the target, +y up, x to
+/// the left; `None` if the three points do not define a frame.
+#[must_use]
+pub fn look_at(origin: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
     let dir = (target - origin).try_normalize()?;
     let left = up.cross(dir).try_normalize()?;
     let new_up = dir.cross(left);
