@@ -11,12 +11,18 @@
 //! Jacobian, to evaluate the density of any given vertex, without casting
 //! rays. No strategy writes a pdf.
 //!
-//! * [`primitives`]: the closed set of warps with inverses and Jacobians.
+//! * [`primitives`]: the closed set of warps with inverses and Jacobians,
+//!   and the changes of variables between their spaces (film plane →
+//!   directions, environment map → directions, plane → aperture,
+//!   directions → sphere).
 //! * Combinators: [`InFrame`] (frame change), [`Select`] (a discrete choice
 //!   looked up from the value), [`Mixture`] (overlapping lobes, summed),
 //!   [`RussianRoulette`] (termination as an event with probability),
 //!   [`Either`], [`Intersect`] (solid angle → area at the hit point),
-//!   [`OnSurface`], [`DiracPoint`] and [`Segment`] (two vertices through a portal).
+//!   [`OnSurface`], [`DiracPoint`], [`AtInfinity`] (environment and
+//!   directional emitters), [`ParallelRays`] (the far disk of a distant
+//!   light: disk area → area at the hit point) and [`Segment`] (two
+//!   vertices through a portal).
 //! * Measures: [`Density`] carries its [`Measure`] and Dirac order; a path's
 //!   [`PathDensity`] compares by Dirac order first.
 //! * Paths: [`Strategy`], [`RandomSequence`] (append, sample, slice, concat,
@@ -56,7 +62,7 @@ pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
 };
-pub use surface::{DiracPoint, Intersect, OnSurface, Segment};
+pub use surface::{AtInfinity, DiracPoint, Intersect, OnSurface, ParallelRays, Segment};
 pub use vertex::{Geometry, RayCaster, Vertex};
 
 #[doc = include_str!("../../README.md")]

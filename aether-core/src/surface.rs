@@ -1,10 +1,12 @@
 //! Blocks that produce vertices: the `intersect` primitive, points sampled
-//! on a surface, and Dirac points.
+//! on a surface, Dirac points, vertices at infinity and the parallel rays
+//! of distant lights.
 
-use glam::Vec3;
+use glam::{DVec2, Vec2, Vec3};
 
 use crate::density::{Density, Measure};
 use crate::distribution::{Distribution, Sample, Step, Uniforms};
+use crate::frame::Frame;
 use crate::vertex::{Geometry, RayCaster, Vertex};
 
 /// The `intersect` primitive: casts a ray from `from` along a sampled
@@ -212,6 +214,223 @@ impl<V: Vertex> Distribution for DiracPoint<V> {
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
         (!self.density(v).is_zero()).then(Uniforms::new)
+    }
+}
+
+/// Vertices at infinity in sampled directions: an environment or a
+/// directional light, sampled as an emitter or directly from a shading
+/// point. `at(direction)` builds the vertex, whose geometry must be
+/// [`Geometry::AtInfinity`] in that direction.
+///
+/// Density: the direction's solid-angle density (Dirac order kept) for a
+/// vertex at infinity; zero, in solid angle, for any other vertex.
+///
+/// ```
+/// use aether_core::{AtInfinity, Distribution, Geometry, Step};
+/// use aether_core::primitives::{Equirect, UniformSquare};
+/// use aether_core::testing::TestVertex;
+///
+/// let sky = AtInfinity::new(Equirect::new(UniformSquare), TestVertex::at_infinity);
+/// let s = sky.sample(&[0.2, 0.4]).unwrap();
+/// let Step::Vertex(v) = s.value else { unreachable!() };
+/// assert!(matches!(v.geometry, Geometry::AtInfinity { .. }));
+/// // Density mode recovers sin θ from the single-precision direction.
+/// let p = sky.density(&s.value).value();
+/// assert!((p - s.density.value()).abs() < 1e-6 * p);
+/// ```
+pub struct AtInfinity<D, F> {
+    directions: D,
+    at: F,
+}
+
+impl<D, F> std::fmt::Debug for AtInfinity<D, F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AtInfinity").finish_non_exhaustive()
+    }
+}
+
+impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> V> AtInfinity<D, F> {
+    /// Vertices `at(w)` for the world directions w of `directions`.
+    pub fn new(directions: D, at: F) -> Self {
+        AtInfinity { directions, at }
+    }
+}
+
+impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> V> Distribution for AtInfinity<D, F> {
+    type Value = Step<V>;
+    fn dims(&self) -> usize {
+        self.directions.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Step<V>>> {
+        let w = self.directions.sample(u)?;
+        let v = (self.at)(w.value);
+        debug_assert!(
+            matches!(v.geometry(), Geometry::AtInfinity { direction }
+                if direction.dot(w.value) >= 1.0 - 1e-5),
+            "at({}) must build the vertex at infinity in that direction",
+            w.value
+        );
+        Some(Sample::new(Step::Vertex(v), w.density))
+    }
+    fn density(&self, v: &Step<V>) -> Density {
+        match v {
+            Step::Vertex(v) => match v.geometry() {
+                Geometry::AtInfinity { direction } => self.directions.density(&direction),
+                _ => Density::zero(Measure::SolidAngle),
+            },
+            _ => Density::zero(Measure::SolidAngle),
+        }
+    }
+    fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
+        match v {
+            Step::Vertex(v) => match v.geometry() {
+                Geometry::AtInfinity { direction } => self.directions.invert(&direction),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.directions.has_overlapping_branches()
+    }
+}
+
+/// Parallel rays from a distant source: points on a disk facing the source
+/// just outside the scene, cast along −`toward` (the "far disk" of a
+/// directional light or of an environment emitting into the scene).
+///
+/// With the frame (s, t, `toward`) of [`Frame::from_normal`], the disk
+/// point q leaves from center + radius · toward + q.x s + q.y t, from the
+/// vertex `at` builds there. The disk must cover the scene's projection
+/// (radius at least the bounding sphere's). A ray that escapes, or ends at
+/// an isolated point or at infinity, is a miss.
+///
+/// Density: p(q) · |n · toward| in area measure at a hit with normal n,
+/// where q is the hit projected onto the disk (parallel projection:
+/// dA_disk = |cos| dA_hit); zero for isolated points, vertices at infinity
+/// and points beyond the disk.
+///
+/// ```
+/// use aether_core::{Distribution, ParallelRays, Step};
+/// use aether_core::primitives::UniformDisk;
+/// use aether_core::testing::{TestScene, TestVertex};
+/// use glam::Vec3;
+///
+/// let scene = TestScene::open_box();
+/// let sun = ParallelRays::new(Vec3::Z, Vec3::new(0.0, 0.0, 1.0), 2.0,
+///     UniformDisk::new(2.0), TestVertex::point, &scene);
+/// // Straight down onto the floor (shape 0), between the light and the sphere.
+/// let hit = sun.sample(&[0.6, 0.45]).unwrap();
+/// assert!(matches!(hit.value, Step::Vertex(v) if v.shape == 0));
+/// assert_eq!(sun.density(&hit.value), hit.density);
+/// ```
+pub struct ParallelRays<D, F, R> {
+    frame: Frame,
+    center: Vec3,
+    radius: f32,
+    points: D,
+    at: F,
+    scene: R,
+}
+
+impl<D, F, R> std::fmt::Debug for ParallelRays<D, F, R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ParallelRays")
+            .field("frame", &self.frame)
+            .field("center", &self.center)
+            .field("radius", &self.radius)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<V, D, F, R> ParallelRays<D, F, R>
+where
+    V: Vertex,
+    D: Distribution<Value = Vec2>,
+    F: Fn(Vec3) -> V,
+    R: RayCaster<V>,
+{
+    /// Rays along −`toward` (a unit direction from the scene towards the
+    /// source) from the disk points of `points`, on the disk of `radius`
+    /// facing `toward` at distance `radius` from `center`.
+    pub fn new(toward: Vec3, center: Vec3, radius: f32, points: D, at: F, scene: R) -> Self {
+        ParallelRays {
+            frame: Frame::from_normal(toward),
+            center,
+            radius,
+            points,
+            at,
+            scene,
+        }
+    }
+
+    /// The disk point a vertex projects to and |cos| at it, or `None` for
+    /// vertices no ray of the disk can hit.
+    fn project(&self, v: &V) -> Option<(Vec2, f64)> {
+        let Geometry::Surface { normal } = v.geometry() else {
+            return None;
+        };
+        let d = (v.position() - self.center).as_dvec3();
+        let toward = self.frame.n.as_dvec3();
+        let r = f64::from(self.radius);
+        // Rays start on the disk and only travel away from the source.
+        if d.dot(toward) > r * (1.0 + 1e-4) {
+            return None;
+        }
+        let q = DVec2::new(
+            d.dot(self.frame.s.as_dvec3()),
+            d.dot(self.frame.t.as_dvec3()),
+        );
+        Some((q.as_vec2(), normal.as_dvec3().dot(toward).abs()))
+    }
+}
+
+impl<V, D, F, R> Distribution for ParallelRays<D, F, R>
+where
+    V: Vertex,
+    D: Distribution<Value = Vec2>,
+    F: Fn(Vec3) -> V,
+    R: RayCaster<V>,
+{
+    type Value = Step<V>;
+    fn dims(&self) -> usize {
+        self.points.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Step<V>>> {
+        let q = self.points.sample(u)?;
+        let Frame { s, t, n } = self.frame;
+        let origin = self.center.as_dvec3()
+            + f64::from(self.radius) * n.as_dvec3()
+            + f64::from(q.value.x) * s.as_dvec3()
+            + f64::from(q.value.y) * t.as_dvec3();
+        let hit = self.scene.cast(&(self.at)(origin.as_vec3()), -n);
+        let Some((v, normal)) = hit.and_then(|v| match v.geometry() {
+            Geometry::Surface { normal } => Some((v, normal)),
+            _ => None,
+        }) else {
+            return Some(Sample::new(Step::Missed, Density::zero(Measure::Area)));
+        };
+        let cos = normal.as_dvec3().dot(n.as_dvec3()).abs();
+        Some(Sample::new(
+            Step::Vertex(v),
+            q.density.convert(cos, Measure::Area),
+        ))
+    }
+    fn density(&self, v: &Step<V>) -> Density {
+        let Step::Vertex(v) = v else {
+            return Density::zero(Measure::Area);
+        };
+        match self.project(v) {
+            Some((q, cos)) => self.points.density(&q).convert(cos, Measure::Area),
+            None => Density::zero(Measure::Area),
+        }
+    }
+    fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
+        let Step::Vertex(v) = v else { return None };
+        self.points.invert(&self.project(v)?.0)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.points.has_overlapping_branches()
     }
 }
 

@@ -53,6 +53,17 @@ impl TestVertex {
         }
     }
 
+    /// The vertex at infinity in unit `direction` (an environment or a
+    /// directional light); its position is unused and set to zero.
+    #[must_use]
+    pub fn at_infinity(direction: Vec3) -> Self {
+        TestVertex {
+            position: Vec3::ZERO,
+            geometry: Geometry::AtInfinity { direction },
+            shape: u32::MAX,
+        }
+    }
+
     /// The geometric normal (+z for points and infinity).
     #[must_use]
     pub fn normal(&self) -> Vec3 {

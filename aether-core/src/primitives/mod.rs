@@ -10,6 +10,8 @@
 //! | directions | [`CosineHemisphere`], [`UniformHemisphere`], [`UniformSphere`], [`UniformCone`] | solid angle |
 //! | microfacets | [`GgxVisibleNormals`], [`BeckmannNormals`] | solid angle |
 //! | scattering | [`Reflect`], [`Refract`] (half-vector Jacobians), [`DiracDirection`] | solid angle, Dirac |
+//! | projections | [`Gnomonic`] (film plane → directions), [`Equirect`] (unit square → directions) | solid angle |
+//! | embeddings | [`Affine2`] (plane → plane), [`Planar`] (plane → a plane in space), [`SpherePoint`] (directions → a sphere) | area |
 //!
 //! Every primitive is checked by the property harness in
 //! [`harness`](crate::harness): recorded density against density mode,
@@ -20,6 +22,7 @@ mod discrete;
 mod microfacet;
 mod piecewise;
 mod planar;
+mod projections;
 mod scattering;
 mod uniform;
 
@@ -28,6 +31,7 @@ pub use discrete::{DiscreteDistribution, DiscreteError};
 pub use microfacet::{BeckmannNormals, GgxVisibleNormals};
 pub use piecewise::{PiecewiseConstant1D, PiecewiseConstant2D};
 pub use planar::{UniformDisk, UniformTriangle};
+pub use projections::{Affine2, Equirect, Gnomonic, Planar, SpherePoint};
 pub use scattering::{DiracDirection, Reflect, Refract};
 pub use uniform::{UniformInterval, UniformSquare};
 
