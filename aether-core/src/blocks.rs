@@ -88,3 +88,29 @@ impl<A: Distribution, B: Distribution<Value = A::Value>> Distribution for Either
         }
     }
 }
+
+/// A block that may be absent: a strategy with nothing to sample at this
+/// vertex (no BSDF at a point light) samples nothing (a void sample), and
+/// every value has density zero under it.
+impl<D: Distribution> Distribution for Option<D> {
+    type Value = D::Value;
+    fn dims(&self) -> usize {
+        self.as_ref().map_or(0, Distribution::dims)
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<D::Value>> {
+        self.as_ref()?.sample(u)
+    }
+    fn density(&self, v: &D::Value) -> Density {
+        match self {
+            Some(d) => d.density(v),
+            None => Density::zero(crate::density::Measure::Discrete),
+        }
+    }
+    fn invert(&self, v: &D::Value) -> Option<Uniforms> {
+        self.as_ref()?.invert(v)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        self.as_ref()
+            .is_some_and(Distribution::has_overlapping_branches)
+    }
+}

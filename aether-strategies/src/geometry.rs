@@ -285,9 +285,39 @@ impl Geometry {
 
     fn triangle_hit(&self, id: usize, t: f32, b: [f32; 3]) -> Hit {
         let (m, tri) = self.origins[id];
+        self.on_triangle(m, tri, self.triangles[id], t, b)
+    }
+
+    /// The surface point of triangle `triangle` of mesh `mesh` nearest to
+    /// `position` (a point sampled on it), with its normals, uv and error.
+    #[must_use]
+    pub fn point_on_triangle(&self, mesh: u32, triangle: u32, position: Vec3) -> Hit {
+        let corners = self.meshes[mesh as usize].corners(triangle as usize);
+        let [p0, p1, p2] = corners.map(Vec3::as_dvec3);
+        let (e1, e2, d) = (p1 - p0, p2 - p0, position.as_dvec3() - p0);
+        let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let (r1, r2) = (d.dot(e1), d.dot(e2));
+        let det = a * c - b * b;
+        let (b1, b2) = if det > 0.0 {
+            ((c * r1 - b * r2) / det, (a * r2 - b * r1) / det)
+        } else {
+            (0.0, 0.0)
+        };
+        let bary = [(1.0 - b1 - b2) as f32, b1 as f32, b2 as f32];
+        self.on_triangle(mesh, triangle, corners, 0.0, bary)
+    }
+
+    /// The surface point of sphere `sphere` in `direction` from its centre.
+    #[must_use]
+    pub fn point_on_sphere(&self, sphere: u32, direction: Vec3) -> Hit {
+        let s = self.spheres[sphere as usize];
+        self.sphere_hit(sphere as usize, s.center, direction.normalize(), s.radius)
+    }
+
+    fn on_triangle(&self, m: u32, tri: u32, corners: [Vec3; 3], t: f32, b: [f32; 3]) -> Hit {
         let mesh = &self.meshes[m as usize];
         let idx = mesh.triangles[tri as usize];
-        let [p0, p1, p2] = self.triangles[id];
+        let [p0, p1, p2] = corners;
         let position = b[0] * p0 + b[1] * p1 + b[2] * p2;
         let error = gamma(7.0) * ((b[0] * p0).abs() + (b[1] * p1).abs() + (b[2] * p2).abs());
         let geometric_normal = (p1 - p0).cross(p2 - p0).normalize_or_zero();

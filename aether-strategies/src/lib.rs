@@ -8,8 +8,13 @@
 
 pub mod bitmap;
 pub mod bsdf;
+pub mod camera;
 pub mod geometry;
+pub mod integrand;
+pub mod lights;
 pub mod mesh;
+pub mod portal;
+pub mod scattering;
 pub mod scene;
 pub mod spectrum;
 pub mod vertex;

@@ -21,9 +21,20 @@ pub enum Site {
         /// The emitter, if it is a light.
         emitter: Option<u32>,
     },
-    /// An environment at infinity in `direction`.
+    /// A point on a thin lens's aperture (a surface whose normal is the
+    /// camera's viewing direction).
+    Lens,
+    /// The environment (a constant or environment-map emitter), at
+    /// infinity in `direction`.
     Environment {
         /// Unit direction from the scene towards the environment.
+        direction: Vec3,
+    },
+    /// A directional light, at infinity in `direction`.
+    Distant {
+        /// Index into `Scene::emitters`.
+        emitter: u32,
+        /// Unit direction from the scene towards the light.
         direction: Vec3,
     },
 }
@@ -76,6 +87,72 @@ impl SceneVertex {
         }
     }
 
+    /// The vertex at infinity in `direction` (unit, from the scene), on the
+    /// environment.
+    #[must_use]
+    pub fn environment(direction: Vec3) -> Self {
+        SceneVertex {
+            site: Site::Environment { direction },
+            ..SceneVertex::point(Vec3::ZERO, None)
+        }
+    }
+
+    /// The vertex at infinity of directional light `emitter`.
+    #[must_use]
+    pub fn distant(emitter: u32, direction: Vec3) -> Self {
+        SceneVertex {
+            site: Site::Distant { emitter, direction },
+            ..SceneVertex::point(Vec3::ZERO, None)
+        }
+    }
+
+    /// A point on a thin lens whose optical axis is `axis`.
+    #[must_use]
+    pub fn lens(position: Vec3, axis: Vec3) -> Self {
+        SceneVertex {
+            geometric_normal: axis,
+            shading_normal: axis,
+            site: Site::Lens,
+            ..SceneVertex::point(position, None)
+        }
+    }
+
+    /// The vertex at `position` sampled on triangle `triangle` of mesh `mesh`.
+    #[must_use]
+    pub fn on_triangle(scene: &Scene, mesh: u32, triangle: u32, position: Vec3) -> Self {
+        let hit = scene.geometry.point_on_triangle(mesh, triangle, position);
+        SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
+    }
+
+    /// The vertex at `position` sampled on sphere `sphere` of the geometry.
+    #[must_use]
+    pub fn on_sphere(scene: &Scene, sphere: u32, position: Vec3) -> Self {
+        let center = scene.geometry.spheres()[sphere as usize].center;
+        let hit = scene.geometry.point_on_sphere(sphere, position - center);
+        SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
+    }
+
+    /// The unit direction from this vertex towards `other` (for a vertex at
+    /// infinity, its direction), or `None` if they coincide.
+    #[must_use]
+    pub fn direction_to(&self, other: &SceneVertex) -> Option<Vec3> {
+        match (other.site, self.site) {
+            (Site::Environment { direction } | Site::Distant { direction, .. }, _) => {
+                Some(direction)
+            }
+            (_, Site::Environment { direction } | Site::Distant { direction, .. }) => {
+                Some(-direction)
+            }
+            _ => (other.position - self.position).try_normalize(),
+        }
+    }
+
+    /// True if the vertex lies at infinity.
+    #[must_use]
+    pub fn is_at_infinity(&self) -> bool {
+        matches!(self.site, Site::Environment { .. } | Site::Distant { .. })
+    }
+
     /// The index of the shape the vertex lies on.
     #[must_use]
     pub fn shape(&self) -> Option<usize> {
@@ -95,8 +172,13 @@ impl Vertex for SceneVertex {
             Site::Surface { .. } => Place::Surface {
                 normal: self.geometric_normal,
             },
+            Site::Lens => Place::Surface {
+                normal: self.geometric_normal,
+            },
             Site::Point { .. } => Place::Point,
-            Site::Environment { direction } => Place::AtInfinity { direction },
+            Site::Environment { direction } | Site::Distant { direction, .. } => {
+                Place::AtInfinity { direction }
+            }
         }
     }
 }
@@ -125,14 +207,9 @@ impl RayCaster<SceneVertex> for Scene {
         };
         match self.geometry.intersect(origin, direction, f32::INFINITY) {
             Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
-            None => self.has_environment().then_some(SceneVertex {
-                position: Vec3::ZERO,
-                geometric_normal: Vec3::ZERO,
-                shading_normal: Vec3::ZERO,
-                uv: Vec2::ZERO,
-                error: Vec3::ZERO,
-                site: Site::Environment { direction },
-            }),
+            None => self
+                .has_environment()
+                .then(|| SceneVertex::environment(direction)),
         }
     }
 }

@@ -3,7 +3,7 @@
 //! probabilities, rough lobes against the histogram).
 
 use aether_core::harness::{Check, Grid, SphereDirections, check};
-use aether_strategies::bsdf::Lobes;
+use aether_strategies::bsdf::{Lobes, Transport};
 use aether_strategies::scene::{Material, MicrofacetKind, Roughness, Texture};
 use glam::Vec3;
 
@@ -129,9 +129,9 @@ fn every_material_samples_as_its_density_says() {
         Vec3::new(-0.8, 0.2, 0.35).normalize(),
     ] {
         for (name, material, eta) in &materials {
-            let lobes = Lobes::of(material, wi, *eta);
+            let lobes = Lobes::of(material, wi, *eta, Transport::Radiance);
             let report = check(
-                &lobes.distribution(),
+                &lobes,
                 &Grid::new(SphereDirections, 16),
                 &config,
             )

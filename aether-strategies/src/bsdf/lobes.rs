@@ -1,0 +1,148 @@
+//! The sampling of each material, written in the language's blocks so that
+//! its densities come from the language.
+//!
+//! Directions are in the local shading frame (+z the shading normal), both
+//! pointing away from the surface; `given` is the direction the path came
+//! from, on the +z side.
+
+use aether_core::primitives::{
+    BeckmannNormals, CosineHemisphere, DiracDirection, DiscreteDistribution, GgxVisibleNormals,
+    Reflect, Refract,
+};
+use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
+use glam::Vec3;
+use smallvec::SmallVec;
+
+use super::Transport;
+use super::fresnel::fresnel_dielectric;
+use crate::scene::{Material, MicrofacetKind, Roughness};
+
+/// A microfacet normal distribution seen from `given`.
+type Normals = Either<GgxVisibleNormals, BeckmannNormals>;
+
+fn normals(r: Roughness, given: Vec3) -> Normals {
+    match r.kind {
+        MicrofacetKind::Ggx => Either::Left(GgxVisibleNormals::new(r.alpha[0], r.alpha[1], given)),
+        MicrofacetKind::Beckmann => Either::Right(BeckmannNormals::new(r.alpha[0].max(r.alpha[1]))),
+    }
+}
+
+/// One lobe of a BSDF's sampling.
+type Lobe =
+    Either<Either<CosineHemisphere, DiracDirection>, Either<Reflect<Normals>, Refract<Normals>>>;
+
+fn diffuse() -> Lobe {
+    Either::Left(Either::Left(CosineHemisphere))
+}
+
+fn mirror(given: Vec3) -> Lobe {
+    Either::Left(Either::Right(DiracDirection::new(
+        Vec3::new(-given.x, -given.y, given.z),
+        1.0,
+    )))
+}
+
+fn glossy(r: Roughness, given: Vec3) -> Lobe {
+    Either::Right(Either::Left(Reflect::new(given, normals(r, given))))
+}
+
+/// The smooth transmission lobe. Path densities express every Dirac lobe in
+/// the direction towards the light end of the path (the one camera paths
+/// sample), so a light path, which samples the other direction, records
+/// its mass times dω_light / dω_camera = η²|cos_t| / |cos_i| (from
+/// η_i² cos_i dω_i = η_t² cos_t dω_t). Then f / p is the same expression
+/// whichever end sampled the refraction, and MIS compares like with like.
+fn transmit(given: Vec3, eta: f32, mode: Transport) -> Option<Lobe> {
+    let t = aether_core::refract(given, Vec3::Z, eta)?;
+    let mass = match mode {
+        Transport::Radiance => 1.0,
+        Transport::Importance => {
+            f64::from(eta).powi(2) * f64::from(t.z.abs()) / f64::from(given.z.abs())
+        }
+    };
+    Some(Either::Left(Either::Right(DiracDirection::new(t, mass))))
+}
+
+/// The sampling of a material at a shading point, for the direction
+/// `given` the path arrived along (local, z > 0), as lobes and their
+/// probabilities.
+#[derive(Debug)]
+pub struct Lobes {
+    choice: DiscreteDistribution,
+    lobes: SmallVec<[Lobe; 2]>,
+}
+
+impl Lobes {
+    /// The lobes of `material` for `given` (z > 0), where `eta` = η_other /
+    /// η_given-side is the relative index across the surface, and `mode` says
+    /// which end of the path `given` leads to.
+    #[must_use]
+    pub fn of(material: &Material, given: Vec3, eta: f32, mode: Transport) -> Lobes {
+        let single = |lobe| Lobes {
+            choice: DiscreteDistribution::new(&[1.0]).expect("one weight"),
+            lobes: SmallVec::from_slice(&[lobe]),
+        };
+        let pair = |p: f64, a, b| Lobes {
+            choice: DiscreteDistribution::new(&[p, 1.0 - p]).expect("positive"),
+            lobes: SmallVec::from_slice(&[a, b]),
+        };
+        match material {
+            Material::Diffuse { .. } => single(diffuse()),
+            Material::Conductor {
+                roughness: None, ..
+            } => single(mirror(given)),
+            Material::Conductor {
+                roughness: Some(r), ..
+            } => single(glossy(*r, given)),
+            Material::Dielectric { roughness, .. } => {
+                let f = f64::from(fresnel_dielectric(given.z, eta)).clamp(1e-3, 1.0 - 1e-3);
+                match roughness {
+                    None => match transmit(given, eta, mode) {
+                        Some(t) => pair(f, mirror(given), t),
+                        None => single(mirror(given)),
+                    },
+                    Some(r) => pair(
+                        f,
+                        glossy(*r, given),
+                        Either::Right(Either::Right(Refract::new(given, eta, normals(*r, given)))),
+                    ),
+                }
+            }
+            Material::Plastic { roughness, .. } => {
+                let f = f64::from(fresnel_dielectric(given.z, eta)).clamp(0.05, 0.95);
+                let specular = match roughness {
+                    None => mirror(given),
+                    Some(r) => glossy(*r, given),
+                };
+                pair(f, specular, diffuse())
+            }
+            Material::BumpMap { inner, .. } | Material::TwoSided(inner) => {
+                Lobes::of(inner, given, eta, mode)
+            }
+        }
+    }
+
+    fn mixture(&self) -> impl Distribution<Value = Vec3> + '_ {
+        Mixture::new(&self.choice, 2, move |i| self.lobes[i])
+    }
+}
+
+/// The directions the lobes sample, with the mixture's density.
+impl Distribution for Lobes {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        self.mixture().dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        self.mixture().sample(u)
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        self.mixture().density(w)
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        self.mixture().invert(w)
+    }
+    fn has_overlapping_branches(&self) -> bool {
+        true
+    }
+}

@@ -1,0 +1,323 @@
+//! BSDFs at a shading point: their values, and their sampling written in
+//! the language's blocks (so that their densities come from the language).
+//!
+//! Values follow the flow of light: [`Bsdf::eval`] takes the direction
+//! towards the light end of the path and the one towards the camera end,
+//! whichever end sampled them. It is the physical BSDF, including the
+//! (η_o/η_i)² scaling of radiance at refraction and Veach's shading-normal
+//! correction |ω_light·n_s| / |ω_light·n_g| (so that geometry terms use
+//! geometric normals). Light paths therefore need no adjoint BSDF of their
+//! own: the adjoint is this same function with its arguments read in the
+//! other order, and [`Transport`] only changes how Dirac refraction masses
+//! are recorded (see [`Lobes`]).
+
+mod bump;
+mod fresnel;
+mod lobes;
+mod microfacet;
+
+use std::cell::Cell;
+use std::f32::consts::PI;
+
+use aether_core::primitives::DiracDirection;
+use aether_core::{Distribution, Frame, InFrame};
+use glam::{Vec2, Vec3};
+
+pub use fresnel::{fresnel_conductor, fresnel_dielectric, fresnel_diffuse_reflectance};
+pub use lobes::Lobes;
+pub use microfacet::{normal_density, shadowing, smith_g1};
+
+use crate::scene::{Material, Scene};
+use crate::vertex::{SceneVertex, Site};
+
+/// Which end of the path a sampled direction leads away from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// Camera paths: the sampled direction leads towards the light.
+    Radiance,
+    /// Light paths: the sampled direction leads towards the camera.
+    Importance,
+}
+
+/// The BSDF of a surface vertex: its material, shading frame (bump-mapped
+/// where the material says so), geometric normal and texture coordinates.
+///
+/// ```
+/// # use aether_strategies::bsdf::Bsdf;
+/// # fn f(scene: &aether_strategies::scene::Scene, v: &aether_strategies::vertex::SceneVertex) {
+/// let bsdf = Bsdf::at(scene, v).expect("a surface vertex");
+/// let to_light = glam::Vec3::Z;
+/// let to_camera = glam::Vec3::new(0.0, 0.6, 0.8);
+/// let f = bsdf.eval(to_light, to_camera); // RGB, per steradian
+/// # }
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct Bsdf<'s> {
+    material: &'s Material,
+    two_sided: bool,
+    frame: Frame,
+    geometric_normal: Vec3,
+    uv: Vec2,
+}
+
+impl<'s> Bsdf<'s> {
+    /// The BSDF at `v`, or `None` if it is not on a surface.
+    #[must_use]
+    pub fn at(scene: &'s Scene, v: &SceneVertex) -> Option<Bsdf<'s>> {
+        let Site::Surface { shape, .. } = v.site else {
+            return None;
+        };
+        let mut material = &scene.materials[scene.shapes[shape as usize].material];
+        let mut two_sided = false;
+        let mut normal = v.shading_normal;
+        loop {
+            match material {
+                Material::TwoSided(inner) => {
+                    two_sided = true;
+                    material = inner;
+                }
+                Material::BumpMap { height, inner } => {
+                    normal = bump::perturbed_normal(scene, v, normal, height);
+                    material = inner;
+                }
+                _ => break,
+            }
+        }
+        Some(Bsdf {
+            material,
+            two_sided,
+            frame: Frame::from_normal(normal),
+            geometric_normal: v.geometric_normal,
+            uv: v.uv,
+        })
+    }
+
+    /// The material (under any two-sided or bump-map wrappers).
+    #[must_use]
+    pub fn material(&self) -> &'s Material {
+        self.material
+    }
+
+    /// The shading normal.
+    #[must_use]
+    pub fn shading_normal(&self) -> Vec3 {
+        self.frame.n
+    }
+
+    /// True if every lobe is a Dirac lobe (smooth metal and glass), so that
+    /// no connection can end here.
+    #[must_use]
+    pub fn is_dirac(&self) -> bool {
+        matches!(
+            self.material,
+            Material::Conductor {
+                roughness: None,
+                ..
+            } | Material::Dielectric {
+                roughness: None,
+                ..
+            }
+        )
+    }
+
+    /// f(ω_light → ω_camera) for unit world directions pointing away from
+    /// the surface, with the shading-normal correction. Dirac lobes give
+    /// their coefficient (per unit Dirac mass in the solid angle of
+    /// `to_light`) when the pair matches within [`DiracDirection::TOLERANCE`].
+    #[must_use]
+    pub fn eval(&self, to_light: Vec3, to_camera: Vec3) -> Vec3 {
+        let cos_geometric = to_light.dot(self.geometric_normal).abs();
+        if cos_geometric == 0.0 {
+            return Vec3::ZERO;
+        }
+        let mut wi = self.frame.to_local(to_light);
+        let mut wo = self.frame.to_local(to_camera);
+        if self.two_sided && wo.z < 0.0 {
+            wi.z = -wi.z;
+            wo.z = -wo.z;
+        }
+        let f = eval_local(self.material, self.uv, wi, wo);
+        f * (wi.z.abs() / cos_geometric)
+    }
+
+    /// The distribution of the next direction for a path that arrived along
+    /// `given` (a unit world direction pointing away from the surface).
+    #[must_use]
+    pub fn sampling(&self, given: Vec3, mode: Transport) -> InFrame<Lobes> {
+        let mut frame = self.frame;
+        let mut local = frame.to_local(given);
+        let mut eta = match self.material {
+            Material::Dielectric {
+                int_ior, ext_ior, ..
+            }
+            | Material::Plastic {
+                int_ior, ext_ior, ..
+            } => int_ior / ext_ior,
+            _ => 1.0,
+        };
+        if local.z < 0.0 {
+            // Seen from behind: the mirrored frame keeps the lobes' +z
+            // convention (and stays right-handed).
+            frame = Frame {
+                s: frame.s,
+                t: -frame.t,
+                n: -frame.n,
+            };
+            local = Vec3::new(local.x, -local.y, -local.z);
+            if matches!(self.material, Material::Dielectric { .. }) {
+                eta = 1.0 / eta;
+            }
+        }
+        InFrame::new(frame, Lobes::of(self.material, local, eta, mode))
+    }
+}
+
+fn rgb(c: [f32; 3]) -> Vec3 {
+    Vec3::from_array(c)
+}
+
+fn is_mirror(wi: Vec3, wo: Vec3) -> bool {
+    !DiracDirection::new(Vec3::new(-wi.x, -wi.y, wi.z), 1.0)
+        .density(&wo)
+        .is_zero()
+}
+
+/// The internal diffuse reflectance of a coat, memoised per thread: a scene
+/// has few distinct indices, and the integral costs hundreds of Fresnel terms.
+fn internal_diffuse_reflectance(eta: f32) -> f32 {
+    thread_local! {
+        static LAST: Cell<(u32, f32)> = const { Cell::new((u32::MAX, 0.0)) };
+    }
+    LAST.with(|last| {
+        let (key, value) = last.get();
+        if key == eta.to_bits() {
+            return value;
+        }
+        let value = fresnel_diffuse_reflectance(1.0 / eta);
+        last.set((eta.to_bits(), value));
+        value
+    })
+}
+
+/// The radiance BSDF f(wi → wo) in the shading frame: light arrives from
+/// `wi` and leaves along `wo`.
+fn eval_local(material: &Material, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
+    let reflection = wi.z > 0.0 && wo.z > 0.0;
+    match material {
+        Material::Diffuse { reflectance } if reflection => {
+            rgb(reflectance.eval(uv.to_array())) / PI
+        }
+        Material::Conductor {
+            ior,
+            specular_reflectance,
+            roughness,
+        } if reflection => {
+            let fresnel = |c: f32| match ior {
+                Some((eta, k)) => fresnel_conductor(c, rgb(*eta), rgb(*k)),
+                None => Vec3::ONE,
+            };
+            let tint = rgb(*specular_reflectance);
+            match roughness {
+                None if is_mirror(wi, wo) => fresnel(wi.z) * tint / wi.z,
+                None => Vec3::ZERO,
+                Some(r) => {
+                    let h = (wi + wo).normalize();
+                    fresnel(wi.dot(h)) * tint * normal_density(*r, h) * shadowing(*r, wi, wo, h)
+                        / (4.0 * wi.z * wo.z)
+                }
+            }
+        }
+        Material::Dielectric {
+            int_ior,
+            ext_ior,
+            roughness,
+        } => {
+            if wi.z == 0.0 || wo.z == 0.0 {
+                return Vec3::ZERO;
+            }
+            // Work from wi's side: eta is η(wo's medium on transmission) / η(wi's).
+            let (wi, wo, eta) = if wi.z > 0.0 {
+                (wi, wo, int_ior / ext_ior)
+            } else {
+                let flip = |w: Vec3| Vec3::new(w.x, w.y, -w.z);
+                (flip(wi), flip(wo), ext_ior / int_ior)
+            };
+            Vec3::splat(dielectric(*roughness, wi, wo, eta))
+        }
+        Material::Plastic {
+            diffuse_reflectance,
+            specular_reflectance,
+            int_ior,
+            ext_ior,
+            roughness,
+        } if reflection => {
+            let eta = int_ior / ext_ior;
+            let (fi, fo) = (fresnel_dielectric(wi.z, eta), fresnel_dielectric(wo.z, eta));
+            let specular = match roughness {
+                None if is_mirror(wi, wo) => fi / wi.z,
+                None => 0.0,
+                Some(r) => {
+                    let h = (wi + wo).normalize();
+                    fresnel_dielectric(wi.dot(h), eta)
+                        * normal_density(*r, h)
+                        * shadowing(*r, wi, wo, h)
+                        / (4.0 * wi.z * wo.z)
+                }
+            };
+            // Mitsuba's coat: light refracts in, scatters diffusely with
+            // internal reflections summed as a geometric series, refracts out.
+            let base = rgb(diffuse_reflectance.eval(uv.to_array()))
+                / (1.0 - internal_diffuse_reflectance(eta));
+            rgb(*specular_reflectance) * specular
+                + base * ((1.0 - fi) * (1.0 - fo) / (eta * eta * PI))
+        }
+        Material::TwoSided(inner) | Material::BumpMap { inner, .. } => {
+            eval_local(inner, uv, wi, wo)
+        }
+        _ => Vec3::ZERO,
+    }
+}
+
+/// A dielectric interface seen from wi's side (wi.z > 0), `eta` the
+/// relative index of the other side.
+fn dielectric(roughness: Option<crate::scene::Roughness>, wi: Vec3, wo: Vec3, eta: f32) -> f32 {
+    match roughness {
+        None if wo.z > 0.0 => {
+            if is_mirror(wi, wo) {
+                fresnel_dielectric(wi.z, eta) / wi.z
+            } else {
+                0.0
+            }
+        }
+        None => match aether_core::refract(wi, Vec3::Z, eta) {
+            Some(t) if !DiracDirection::new(t, 1.0).density(&wo).is_zero() => {
+                (1.0 - fresnel_dielectric(wi.z, eta)) * eta * eta / wi.z
+            }
+            _ => 0.0,
+        },
+        Some(r) if wo.z > 0.0 => {
+            let h = (wi + wo).normalize();
+            fresnel_dielectric(wi.dot(h), eta) * normal_density(r, h) * shadowing(r, wi, wo, h)
+                / (4.0 * wi.z * wo.z)
+        }
+        Some(r) => {
+            // Walter et al. 2007: the generalised half vector of refraction.
+            let mut h = -(wi + eta * wo).normalize();
+            if h.z < 0.0 {
+                h = -h;
+            }
+            let (ci, co) = (wi.dot(h), wo.dot(h));
+            if ci <= 0.0 || co >= 0.0 {
+                return 0.0;
+            }
+            let denom = ci + eta * co;
+            (ci * co).abs() / (wi.z * wo.z).abs()
+                * eta
+                * eta
+                * (1.0 - fresnel_dielectric(ci, eta))
+                * normal_density(r, h)
+                * shadowing(r, wi, wo, h)
+                / (denom * denom)
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! The path integrand f(x̄): camera importance, geometry terms, BSDF values
+//! and emitted radiance, with visibility tested on connection edges only
+//! (edges that a ray traced while sampling are known to be clear).
+
+use glam::Vec3;
+
+use crate::bsdf::Bsdf;
+use crate::camera::Camera;
+use crate::lights::Lights;
+use crate::scene::Scene;
+use crate::vertex::{SceneVertex, Site};
+
+/// |cos| of the edge direction `d` at `v`: one for points and vertices at
+/// infinity, whose measures carry no cosine.
+fn cosine(v: &SceneVertex, d: Vec3) -> f32 {
+    match v.site {
+        Site::Surface { .. } | Site::Lens => v.geometric_normal.dot(d).abs(),
+        _ => 1.0,
+    }
+}
+
+/// The geometry term G(a, b) = |cos θ_a| |cos θ_b| / ‖a − b‖², with no
+/// distance for an edge to infinity.
+#[must_use]
+pub fn geometry_term(a: &SceneVertex, b: &SceneVertex) -> f32 {
+    let Some(d) = a.direction_to(b) else {
+        return 0.0;
+    };
+    let c = cosine(a, d) * cosine(b, -d);
+    if a.is_at_infinity() || b.is_at_infinity() {
+        c
+    } else {
+        c / (b.position - a.position).length_squared()
+    }
+}
+
+/// The measurement contribution of paths of a scene.
+#[derive(Clone, Copy, Debug)]
+pub struct Integrand<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    lights: &'a Lights<'a>,
+}
+
+impl<'a> Integrand<'a> {
+    /// The integrand of `scene` seen by `camera`, lit by `lights`.
+    #[must_use]
+    pub fn new(scene: &'a Scene, camera: &'a Camera, lights: &'a Lights<'a>) -> Self {
+        Integrand {
+            scene,
+            camera,
+            lights,
+        }
+    }
+
+    /// True if nothing blocks the edge between `a` and `b`.
+    #[must_use]
+    pub fn visible(&self, a: &SceneVertex, b: &SceneVertex) -> bool {
+        let g = &self.scene.geometry;
+        match (a.is_at_infinity(), b.is_at_infinity()) {
+            (false, false) => g.visible(
+                (a.position, a.error, a.geometric_normal),
+                (b.position, b.error, b.geometric_normal),
+            ),
+            (true, true) => false,
+            (false, true) | (true, false) => {
+                let (x, far) = if b.is_at_infinity() { (a, b) } else { (b, a) };
+                let d = x.direction_to(far).unwrap_or(Vec3::Z);
+                let o = crate::geometry::offset_origin(x.position, x.error, x.geometric_normal, d);
+                !g.occluded(o, d, f32::INFINITY)
+            }
+        }
+    }
+
+    /// f(x̄) without the camera's importance: the product of geometry
+    /// terms, BSDF values and the radiance emitted by the last vertex, for
+    /// a path ordered from the camera (`path[0]`) to the light. Edges
+    /// `path[i]`–`path[i + 1]` for `i` in `connections` are tested for
+    /// visibility.
+    #[must_use]
+    pub fn throughput(&self, path: &[SceneVertex], connections: &[usize]) -> Vec3 {
+        let n = path.len();
+        if n < 2 {
+            return Vec3::ZERO;
+        }
+        let mut f = Vec3::ONE;
+        for i in 0..n - 1 {
+            f *= geometry_term(&path[i], &path[i + 1]);
+        }
+        for i in 1..n - 1 {
+            let (Some(bsdf), Some(to_light), Some(to_camera)) = (
+                Bsdf::at(self.scene, &path[i]),
+                path[i].direction_to(&path[i + 1]),
+                path[i].direction_to(&path[i - 1]),
+            ) else {
+                return Vec3::ZERO;
+            };
+            f *= bsdf.eval(to_light, to_camera);
+        }
+        let Some(out) = path[n - 1].direction_to(&path[n - 2]) else {
+            return Vec3::ZERO;
+        };
+        f *= self.lights.emitted(&path[n - 1], out);
+        if f == Vec3::ZERO
+            || connections
+                .iter()
+                .any(|&i| !self.visible(&path[i], &path[i + 1]))
+        {
+            return Vec3::ZERO;
+        }
+        f
+    }
+
+    /// f(x̄) for pixel `pixel`: the camera's importance for the first edge
+    /// times [`throughput`](Self::throughput).
+    #[must_use]
+    pub fn evaluate(&self, pixel: [u32; 2], path: &[SceneVertex], connections: &[usize]) -> Vec3 {
+        let Some(first) = path
+            .first()
+            .zip(path.get(1))
+            .and_then(|(a, b)| a.direction_to(b))
+        else {
+            return Vec3::ZERO;
+        };
+        let importance = self.camera.importance(pixel, &path[0], first) as f32;
+        if importance == 0.0 {
+            return Vec3::ZERO;
+        }
+        importance * self.throughput(path, connections)
+    }
+}
