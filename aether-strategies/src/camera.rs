@@ -44,7 +44,7 @@ impl PixelFilter {
         let (radius, cells, profile): (f32, usize, fn(f64) -> f64) = match name {
             "box" => (0.5, 1, |_| 1.0),
             "tent" => (1.0, 32, |x| 1.0 - x.abs()),
-            "gaussian" => (2.0, 64, |x| {
+            "gaussian" => (2.0, 32, |x| {
                 ((-x * x / (2.0 * 0.25)).exp() - (-4.0f64 / 0.5).exp()).max(0.0)
             }),
             _ => return None,

@@ -34,6 +34,26 @@ pub fn geometry_term(a: &SceneVertex, b: &SceneVertex) -> f32 {
     }
 }
 
+/// True if nothing in `scene` blocks the edge between `a` and `b` (either
+/// may lie at infinity; two vertices at infinity never see each other).
+#[must_use]
+pub fn visible(scene: &Scene, a: &SceneVertex, b: &SceneVertex) -> bool {
+    let g = &scene.geometry;
+    match (a.is_at_infinity(), b.is_at_infinity()) {
+        (false, false) => g.visible(
+            (a.position, a.error, a.geometric_normal),
+            (b.position, b.error, b.geometric_normal),
+        ),
+        (true, true) => false,
+        (false, true) | (true, false) => {
+            let (x, far) = if b.is_at_infinity() { (a, b) } else { (b, a) };
+            let d = x.direction_to(far).unwrap_or(Vec3::Z);
+            let o = crate::geometry::offset_origin(x.position, x.error, x.geometric_normal, d);
+            !g.occluded(o, d, f32::INFINITY)
+        }
+    }
+}
+
 /// The measurement contribution of paths of a scene.
 #[derive(Clone, Copy, Debug)]
 pub struct Integrand<'a> {
@@ -56,20 +76,7 @@ impl<'a> Integrand<'a> {
     /// True if nothing blocks the edge between `a` and `b`.
     #[must_use]
     pub fn visible(&self, a: &SceneVertex, b: &SceneVertex) -> bool {
-        let g = &self.scene.geometry;
-        match (a.is_at_infinity(), b.is_at_infinity()) {
-            (false, false) => g.visible(
-                (a.position, a.error, a.geometric_normal),
-                (b.position, b.error, b.geometric_normal),
-            ),
-            (true, true) => false,
-            (false, true) | (true, false) => {
-                let (x, far) = if b.is_at_infinity() { (a, b) } else { (b, a) };
-                let d = x.direction_to(far).unwrap_or(Vec3::Z);
-                let o = crate::geometry::offset_origin(x.position, x.error, x.geometric_normal, d);
-                !g.occluded(o, d, f32::INFINITY)
-            }
-        }
+        visible(self.scene, a, b)
     }
 
     /// f(x̄) without the camera's importance: the product of geometry

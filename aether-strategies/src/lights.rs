@@ -136,10 +136,8 @@ impl<'s> Lights<'s> {
                 ),
                 Emitter::Constant { radiance } => {
                     environment = Some(i);
-                    (
-                        luminance(*radiance) * 4.0 * std::f64::consts::PI * disk,
-                        Source::Constant,
-                    )
+                    let power = luminance(*radiance) * 4.0 * std::f64::consts::PI * disk;
+                    (power, Source::Constant)
                 }
                 Emitter::EnvMap {
                     image,
@@ -286,51 +284,48 @@ impl<'s> Lights<'s> {
     /// it is sampled by area (or in direction, for distant lights).
     fn points(&self, e: usize) -> impl Distribution<Value = Step<SceneVertex>> + '_ {
         let scene = self.scene;
-        let environment = |v: Vec3| SceneVertex::environment(v);
         match &self.sources[e] {
-            Source::Mesh { mesh, triangles } => {
-                let mesh = *mesh;
-                let corners = move |t: usize| scene.geometry.meshes()[mesh as usize].corners(t);
-                let triangle = Select::new(
-                    triangles,
-                    2,
-                    move |t| {
-                        let [a, b, c] = corners(t);
-                        UniformTriangle::new(a, b, c)
-                    },
-                    move |p: &Vec3| triangle_under(scene, mesh, *p),
-                );
-                Either::Left(Either::Left(OnSurface::new(triangle, move |p| {
-                    let t = triangle_under(scene, mesh, p)?;
-                    Some(SceneVertex::on_triangle(scene, mesh, t as u32, p))
-                })))
+            Source::Mesh { mesh: m, triangles } => {
+                let under = move |p: &Vec3| triangle_under(scene, *m, *p);
+                let area = Select::new(triangles, 2, move |t| triangle(scene, *m, t), under);
+                let at = move |p| Some(SceneVertex::on_triangle(scene, *m, under(&p)? as u32, p));
+                Either::Left(Either::Left(OnSurface::new(area, at)))
             }
-            Source::Sphere { sphere } => {
-                let (s, i) = (scene.geometry.spheres()[*sphere as usize], *sphere);
-                Either::Left(Either::Right(OnSurface::new(
-                    SpherePoint::new(UniformSphere, s.center, s.radius),
-                    move |p| Some(SceneVertex::on_sphere(scene, i, p)),
-                )))
+            Source::Sphere { sphere: i } => {
+                let s = scene.geometry.spheres()[*i as usize];
+                let at = move |p| Some(SceneVertex::on_sphere(scene, *i, p));
+                let area = SpherePoint::new(UniformSphere, s.center, s.radius);
+                Either::Left(Either::Right(OnSurface::new(area, at)))
             }
-            Source::Point { position, .. } => Either::Right(Either::Left(DiracPoint::new(
-                SceneVertex::point(*position, Some(e as u32)),
-                1.0,
-            ))),
-            Source::Distant { direction } => Either::Right(Either::Right(Either::Left(
-                AtInfinity::new(DiracDirection::new(*direction, 1.0), move |d| {
-                    SceneVertex::distant(e as u32, d)
-                }),
-            ))),
-            Source::Constant => Either::Right(Either::Right(Either::Right(Either::Left(
-                AtInfinity::new(UniformSphere, environment),
-            )))),
-            Source::Map { frame, table } => {
-                Either::Right(Either::Right(Either::Right(Either::Right(
-                    AtInfinity::new(InFrame::new(*frame, Equirect::new(table)), environment),
-                ))))
+            Source::Point { position, .. } => {
+                let light = SceneVertex::point(*position, Some(e as u32));
+                Either::Right(Either::Left(DiracPoint::new(light, 1.0)))
+            }
+            Source::Distant { .. } | Source::Constant | Source::Map { .. } => {
+                let directions = match &self.sources[e] {
+                    Source::Distant { direction } => {
+                        Either::Left(Either::Left(DiracDirection::new(*direction, 1.0)))
+                    }
+                    Source::Map { frame, table } => {
+                        Either::Right(InFrame::new(*frame, Equirect::new(table)))
+                    }
+                    _ => Either::Left(Either::Right(UniformSphere)),
+                };
+                let distant = matches!(self.sources[e], Source::Distant { .. });
+                let at = move |d| match distant {
+                    true => SceneVertex::distant(e as u32, d),
+                    false => SceneVertex::environment(d),
+                };
+                Either::Right(Either::Right(AtInfinity::new(directions, at)))
             }
         }
     }
+}
+
+/// Uniform points on triangle `t` of mesh `mesh`.
+fn triangle(scene: &Scene, mesh: u32, t: usize) -> UniformTriangle {
+    let [a, b, c] = scene.geometry.meshes()[mesh as usize].corners(t);
+    UniformTriangle::new(a, b, c)
 }
 
 /// The triangle of mesh `mesh` that contains `p`, if any.

@@ -3,7 +3,7 @@
 //! on either side.
 
 use aether_core::primitives::{CosineHemisphere, DiscreteDistribution, UniformTriangle};
-use aether_core::{Distribution, Frame, InFrame, Mixture, PairStrategy, Prefix, Segment, Step};
+use aether_core::{Distribution, Frame, InFrame, PairStrategy, Prefix, Segment, Select, Step};
 use glam::Vec3;
 
 use crate::scene::Scene;
@@ -77,19 +77,32 @@ impl PairStrategy<SceneVertex> for PortalSegment<'_> {
         &'a self,
         _prefix: Prefix<'a, SceneVertex>,
     ) -> impl Distribution<Value = Step<(SceneVertex, SceneVertex)>> + 'a {
-        let points = Mixture::new(&self.by_area, 2, |t| {
-            let [a, b, c] = self.corners[t];
-            UniformTriangle::new(a, b, c)
-        });
+        let points = Select::new(
+            &self.by_area,
+            2,
+            |t| {
+                let [a, b, c] = self.corners[t];
+                UniformTriangle::new(a, b, c)
+            },
+            |y: &Vec3| {
+                self.corners
+                    .iter()
+                    .position(|&[a, b, c]| UniformTriangle::new(a, b, c).barycentrics(*y).is_some())
+            },
+        );
         // Lines cross the opening either way, so the direction is cosine
-        // distributed about either side of it.
+        // distributed about either side of it; its side names the choice.
         let side = [
             Frame::from_normal(self.normal),
             Frame::from_normal(-self.normal),
         ];
-        let directions = Mixture::new(&self.sides, 2, move |i| {
-            InFrame::new(side[i], CosineHemisphere)
-        });
+        let n = self.normal;
+        let directions = Select::new(
+            &self.sides,
+            2,
+            move |i| InFrame::new(side[i], CosineHemisphere),
+            move |w: &Vec3| Some(usize::from(w.dot(n) < 0.0)),
+        );
         let at = |y| SceneVertex::point(y, None);
         Segment::new(points, directions, self.origin, self.normal, at, self.scene)
     }

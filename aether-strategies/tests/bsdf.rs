@@ -130,12 +130,8 @@ fn every_material_samples_as_its_density_says() {
     ] {
         for (name, material, eta) in &materials {
             let lobes = Lobes::of(material, wi, *eta, Transport::Radiance);
-            let report = check(
-                &lobes,
-                &Grid::new(SphereDirections, 16),
-                &config,
-            )
-            .unwrap_or_else(|f| panic!("{name} at wi = {wi}: {f}"));
+            let report = check(&lobes, &Grid::new(SphereDirections, 16), &config)
+                .unwrap_or_else(|f| panic!("{name} at wi = {wi}: {f}"));
             println!("{name:>24} wi = {wi}: {report}");
             assert!(report.integral > 0.5, "{name}: {report}");
         }

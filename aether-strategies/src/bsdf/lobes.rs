@@ -143,6 +143,6 @@ impl Distribution for Lobes {
         self.mixture().invert(w)
     }
     fn has_overlapping_branches(&self) -> bool {
-        true
+        self.lobes.len() > 1
     }
 }
