@@ -266,6 +266,20 @@ impl Strategy<SceneVertex> for CameraPosition<'_> {
 ///
 /// Its density, in area measure at the hit, is the filter's density on the
 /// film, times the film → direction Jacobian, times |cos θ| / r².
+///
+/// ```
+/// # fn f(scene: &aether_strategies::scene::Scene) {
+/// use aether_core::{Pcg32, RandomSequence};
+/// use aether_strategies::camera::Camera;
+/// let camera = Camera::new(scene).unwrap();
+/// let (lens, pixel) = (camera.position(), camera.direction(scene, [0, 0]));
+/// let mut rng = Pcg32::new(7, 0);
+/// let mut path = RandomSequence::new();
+/// if path.append_sample(&lens, &mut rng) && path.append_sample(&pixel, &mut rng) {
+///     let first_hit = path.vertices()[1];
+/// }
+/// # }
+/// ```
 #[derive(Clone, Copy, Debug)]
 pub struct CameraDirection<'a> {
     camera: &'a Camera,

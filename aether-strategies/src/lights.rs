@@ -396,6 +396,18 @@ impl Strategy<SceneVertex> for EmitterPosition<'_, '_> {
 /// light's normal, uniform from a point light, uniform in a spot light's
 /// cone, and parallel rays through a disk covering the scene from a
 /// distant light.
+///
+/// ```
+/// # fn f(scene: &aether_strategies::scene::Scene) {
+/// use aether_core::{Pcg32, RandomSequence};
+/// use aether_strategies::lights::Lights;
+/// let lights = Lights::new(scene).expect("a lit scene");
+/// let (start, leave) = (lights.position(), lights.direction());
+/// let mut rng = Pcg32::new(1, 0);
+/// let mut light_path = RandomSequence::new();
+/// let lit = light_path.append_sample(&start, &mut rng) && light_path.append_sample(&leave, &mut rng);
+/// # }
+/// ```
 #[derive(Clone, Copy, Debug)]
 pub struct EmitterDirection<'l, 's>(&'l Lights<'s>);
 
@@ -469,7 +481,24 @@ impl RayCaster<SceneVertex> for OnlySphere<'_> {
 /// Direct sampling of a light from shading point x: a light chosen by
 /// power, then a point by area on meshes, a direction in the cone a sphere
 /// subtends, the position of point and spot lights, and the direction of
-/// distant lights (environment maps by luminance).
+/// distant lights (environment maps by luminance). No ray is cast: the
+/// edge to the light is a connection, whose visibility the integrand tests.
+///
+/// ```
+/// # fn f(scene: &aether_strategies::scene::Scene) {
+/// use aether_core::{Pcg32, RandomSequence};
+/// use aether_strategies::camera::Camera;
+/// use aether_strategies::lights::Lights;
+/// let (camera, lights) = (Camera::new(scene).unwrap(), Lights::new(scene).expect("lit"));
+/// let (lens, pixel, direct) = (camera.position(), camera.direction(scene, [0, 0]), lights.direct());
+/// let mut rng = Pcg32::new(3, 0);
+/// let mut path = RandomSequence::new();
+/// path.append(&lens).append(&pixel);
+/// let mut to_light = path.clone();
+/// to_light.append(&direct);
+/// let ok = path.sample(&mut rng);
+/// # }
+/// ```
 #[derive(Clone, Copy, Debug)]
 pub struct DirectEmitter<'l, 's>(&'l Lights<'s>);
 
