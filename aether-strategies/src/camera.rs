@@ -184,12 +184,18 @@ impl Camera {
         }
         let q = local.truncate() / local.z - self.shift(lens);
         let (scale, offset) = self.plane;
-        Some((q - offset) / scale)
+        Some((q - offset) / scale).filter(|r| r.is_finite())
     }
 
     /// The pixels whose filter support contains raster position `raster`.
     pub fn pixels_around(&self, raster: Vec2) -> impl Iterator<Item = [u32; 2]> {
         let r = self.filter.radius;
+        // A non-finite position covers no pixel (max and min would drop NaN).
+        let raster = if raster.is_finite() {
+            raster
+        } else {
+            Vec2::splat(-1e9)
+        };
         let lo = (raster - Vec2::splat(r + 0.5)).ceil().max(Vec2::ZERO);
         let hi = (raster + Vec2::splat(r - 0.5)).floor().min(Vec2::new(
             self.size[0] as f32 - 1.0,

@@ -2,7 +2,7 @@
 //! and emitted radiance, with visibility tested on connection edges only
 //! (edges that a ray traced while sampling are known to be clear).
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
@@ -80,19 +80,21 @@ impl<'a> Integrand<'a> {
     }
 
     /// f(x̄) without the camera's importance: the product of geometry
-    /// terms, BSDF values and the radiance emitted by the last vertex, for
+    /// terms, BSDF values and the radiance emitted by the last vertex (in
+    /// double precision: geometry terms of long paths between close surfaces
+    /// overflow single precision, as their densities would), for
     /// a path ordered from the camera (`path[0]`) to the light. Edges
     /// `path[i]`–`path[i + 1]` for `i` in `connections` are tested for
     /// visibility.
     #[must_use]
-    pub fn throughput(&self, path: &[SceneVertex], connections: &[usize]) -> Vec3 {
+    pub fn throughput(&self, path: &[SceneVertex], connections: &[usize]) -> DVec3 {
         let n = path.len();
         if n < 2 {
-            return Vec3::ZERO;
+            return DVec3::ZERO;
         }
-        let mut f = Vec3::ONE;
+        let mut f = DVec3::ONE;
         for i in 0..n - 1 {
-            f *= geometry_term(&path[i], &path[i + 1]);
+            f *= f64::from(geometry_term(&path[i], &path[i + 1]));
         }
         for i in 1..n - 1 {
             let (Some(bsdf), Some(to_light), Some(to_camera)) = (
@@ -100,20 +102,20 @@ impl<'a> Integrand<'a> {
                 path[i].direction_to(&path[i + 1]),
                 path[i].direction_to(&path[i - 1]),
             ) else {
-                return Vec3::ZERO;
+                return DVec3::ZERO;
             };
-            f *= bsdf.eval(to_light, to_camera);
+            f *= bsdf.eval(to_light, to_camera).as_dvec3();
         }
         let Some(out) = path[n - 1].direction_to(&path[n - 2]) else {
-            return Vec3::ZERO;
+            return DVec3::ZERO;
         };
-        f *= self.lights.emitted(&path[n - 1], out);
-        if f == Vec3::ZERO
+        f *= self.lights.emitted(&path[n - 1], out).as_dvec3();
+        if f == DVec3::ZERO
             || connections
                 .iter()
                 .any(|&i| !self.visible(&path[i], &path[i + 1]))
         {
-            return Vec3::ZERO;
+            return DVec3::ZERO;
         }
         f
     }
@@ -121,17 +123,17 @@ impl<'a> Integrand<'a> {
     /// f(x̄) for pixel `pixel`: the camera's importance for the first edge
     /// times [`throughput`](Self::throughput).
     #[must_use]
-    pub fn evaluate(&self, pixel: [u32; 2], path: &[SceneVertex], connections: &[usize]) -> Vec3 {
+    pub fn evaluate(&self, pixel: [u32; 2], path: &[SceneVertex], connections: &[usize]) -> DVec3 {
         let Some(first) = path
             .first()
             .zip(path.get(1))
             .and_then(|(a, b)| a.direction_to(b))
         else {
-            return Vec3::ZERO;
+            return DVec3::ZERO;
         };
-        let importance = self.camera.importance(pixel, &path[0], first) as f32;
+        let importance = self.camera.importance(pixel, &path[0], first);
         if importance == 0.0 {
-            return Vec3::ZERO;
+            return DVec3::ZERO;
         }
         importance * self.throughput(path, connections)
     }

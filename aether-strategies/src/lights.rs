@@ -13,6 +13,7 @@ use aether_core::{
 use glam::Vec3;
 
 use crate::camera::frame_of;
+use crate::geometry::Primitive;
 use crate::scene::{Emitter, Scene};
 use crate::vertex::{SceneVertex, Site};
 
@@ -77,9 +78,12 @@ impl<'s> Lights<'s> {
                     let areas: Vec<f64> = (0..mesh.triangles.len())
                         .map(|t| mesh.triangle_area(t))
                         .collect();
+                    // A mesh without area emits nothing: power zero, never chosen.
+                    let triangles = DiscreteDistribution::new(&areas)
+                        .unwrap_or_else(|_| DiscreteDistribution::new(&[1.0]).expect("one weight"));
                     let source = Source::Mesh {
                         mesh: *shape as u32,
-                        triangles: DiscreteDistribution::new(&areas).ok()?,
+                        triangles,
                     };
                     (
                         luminance(*radiance) * std::f64::consts::PI * mesh.area(),
@@ -154,7 +158,12 @@ impl<'s> Lights<'s> {
                         })
                         .collect();
                     let mean = weights.iter().sum::<f64>() / (w * h) as f64;
-                    let table = PiecewiseConstant2D::new(&weights, w, h).ok()?;
+                    // A black map emits nothing: power zero, never chosen.
+                    let Ok(table) = PiecewiseConstant2D::new(&weights, w, h) else {
+                        power.push(0.0);
+                        sources.push(Source::Constant);
+                        continue;
+                    };
                     let power =
                         mean * f64::from(*scale) * 2.0 * std::f64::consts::PI.powi(2) * disk;
                     (
@@ -250,31 +259,24 @@ impl<'s> Lights<'s> {
                 let (cutoff, beam) = (cutoff_angle.to_radians(), beam_width.to_radians());
                 let angle = cos.acos();
                 // Mitsuba 3's falloff: full inside the beam, linear in angle to the cut-off.
-                let falloff = if angle <= beam {
-                    1.0
-                } else if angle < cutoff {
-                    (cutoff - angle) / (cutoff - beam)
-                } else {
+                let falloff = if angle >= cutoff {
                     0.0
+                } else if angle <= beam {
+                    1.0
+                } else {
+                    (cutoff - angle) / (cutoff - beam)
                 };
                 rgb(*intensity) * falloff
             }
             (Emitter::Directional { irradiance, .. }, _) => rgb(*irradiance),
             (Emitter::Constant { radiance }, _) => rgb(*radiance),
-            (
-                Emitter::EnvMap {
-                    image,
-                    scale,
-                    to_world,
-                    ..
-                },
-                _,
-            ) => {
-                let d = to_world.inverse().transform_vector3(-toward).normalize();
-                let u =
-                    (f64::from(d.x).atan2(-f64::from(d.z)) / std::f64::consts::TAU).rem_euclid(1.0);
-                let v = f64::from(d.y).clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
-                rgb(image.lookup(u as f32, v as f32)) * *scale
+            (Emitter::EnvMap { image, scale, .. }, Source::Map { frame, .. }) => {
+                // The map's rows run from the top (v = 0 is up, as in the
+                // Equirect block), while texture lookups put v = 0 at the bottom.
+                let d = frame.to_local(-toward).as_dvec3().normalize();
+                let u = (d.x.atan2(-d.z) / std::f64::consts::TAU).rem_euclid(1.0);
+                let v = d.y.clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
+                rgb(image.lookup(u as f32, 1.0 - v as f32)) * *scale
             }
             _ => Vec3::ZERO,
         }
@@ -286,10 +288,13 @@ impl<'s> Lights<'s> {
         let scene = self.scene;
         match &self.sources[e] {
             Source::Mesh { mesh: m, triangles } => {
-                let under = move |p: &Vec3| triangle_under(scene, *m, *p);
-                let area = Select::new(triangles, 2, move |t| triangle(scene, *m, t), under);
-                let at = move |p| Some(SceneVertex::on_triangle(scene, *m, under(&p)? as u32, p));
-                Either::Left(Either::Left(OnSurface::new(area, at)))
+                // The triangle is chosen by area and named by the vertex's site.
+                let on = move |t: usize| {
+                    let at = move |p| Some(SceneVertex::on_triangle(scene, *m, t as u32, p));
+                    OnSurface::new(triangle(scene, *m, t), at)
+                };
+                let area = Select::new(triangles, 2, on, move |v| triangle_of(v, *m));
+                Either::Left(Either::Left(area))
             }
             Source::Sphere { sphere: i } => {
                 let s = scene.geometry.spheres()[*i as usize];
@@ -328,13 +333,19 @@ fn triangle(scene: &Scene, mesh: u32, t: usize) -> UniformTriangle {
     UniformTriangle::new(a, b, c)
 }
 
-/// The triangle of mesh `mesh` that contains `p`, if any.
-fn triangle_under(scene: &Scene, mesh: u32, p: Vec3) -> Option<usize> {
-    let m = &scene.geometry.meshes()[mesh as usize];
-    (0..m.triangles.len()).find(|&t| {
-        let [a, b, c] = m.corners(t);
-        UniformTriangle::new(a, b, c).barycentrics(p).is_some()
-    })
+/// The triangle of mesh `mesh` a light vertex lies on, if any.
+fn triangle_of(v: &Step<SceneVertex>, mesh: u32) -> Option<usize> {
+    match v {
+        Step::Vertex(SceneVertex {
+            site:
+                Site::Surface {
+                    primitive: Primitive::Triangle { mesh: m, triangle },
+                    ..
+                },
+            ..
+        }) if *m == mesh => Some(*triangle as usize),
+        _ => None,
+    }
 }
 
 fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {

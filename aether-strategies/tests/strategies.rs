@@ -318,6 +318,19 @@ fn light_strategies_pass_the_harness_for_every_light() {
     for constant in [false, true] {
         let scene = lit_room(constant, "");
         let lights = Lights::new(&scene).unwrap();
+        if !constant {
+            // The map's top row is up: the texel at column 0, row 0 (parity
+            // even, so 1 / sin θ₀ in red) is what the sky sends from there.
+            let (theta, phi) = (std::f32::consts::PI / 16.0, std::f32::consts::TAU / 32.0);
+            let d = Vec3::new(
+                theta.sin() * phi.sin(),
+                theta.cos(),
+                -theta.sin() * phi.cos(),
+            );
+            let sky = SceneVertex::environment(d);
+            let l = lights.emitted(&sky, -d);
+            assert!((l.x - 1.0 / theta.sin()).abs() < 1e-3 * l.x, "{l}");
+        }
         let chart = SceneChart::new(&scene, 8, true);
         let start = lights.position();
         let report = check_strategy(&start, &[], &chart, &config())

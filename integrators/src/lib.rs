@@ -13,6 +13,7 @@ pub mod camera;
 pub mod cornell;
 pub mod film;
 pub mod output;
+pub mod path;
 pub mod preview;
 pub mod render;
 

@@ -14,6 +14,7 @@ use rayon::prelude::*;
 
 use crate::camera::CameraRays;
 use crate::film::{Film, Filter, is_valid};
+use crate::path::PathTracer;
 use crate::preview::Preview;
 
 /// Tiles are squares of this many pixels on a side.
@@ -49,13 +50,18 @@ pub struct Rendered {
     pub complete: bool,
 }
 
-/// Renders `scene` with the stand-in direct-lighting estimator.
+/// Renders `scene`: with the path tracer if its integrator is `path`,
+/// otherwise with the stand-in direct-lighting estimator.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
     let (w, h) = (scene.film.width, scene.film.height);
     let filter = Filter::named(&scene.film.filter)
         .ok_or_else(|| format!("unknown filter '{}'", scene.film.filter))?;
     let camera = CameraRays::new(scene);
     let preview = Preview::new(scene);
+    let tracer = match scene.integrator.name.as_str() {
+        "path" => Some(PathTracer::new(scene)?),
+        _ => None,
+    };
     let [cx, cy, cw, ch] = scene.film.crop;
     let tiles: Vec<(u32, u32)> = (cy..cy + ch)
         .step_by(TILE as usize)
@@ -98,11 +104,15 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
                             Pcg32::new(settings.seed, u64::from(y) * u64::from(w) + u64::from(x));
                         let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
                         for _ in 0..settings.spp {
-                            let o = filter.offset([rng.next_f32(), rng.next_f32()]);
-                            let lens = [rng.next_f32(), rng.next_f32()];
-                            let (origin, dir) =
-                                camera.ray(x as f32 + 0.5 + o[0], y as f32 + 0.5 + o[1], lens);
-                            let c = preview.radiance(origin, dir, &mut rng, &mut tile_rays);
+                            let c = if let Some(t) = &tracer {
+                                t.sample([x, y], &mut rng).to_array()
+                            } else {
+                                let o = filter.offset([rng.next_f32(), rng.next_f32()]);
+                                let lens = [rng.next_f32(), rng.next_f32()];
+                                let (origin, dir) =
+                                    camera.ray(x as f32 + 0.5 + o[0], y as f32 + 0.5 + o[1], lens);
+                                preview.radiance(origin, dir, &mut rng, &mut tile_rays)
+                            };
                             if is_valid(c) {
                                 for k in 0..3 {
                                     sum[k] += f64::from(c[k]);

@@ -28,7 +28,7 @@ fn half_texel(t: &Texture) -> Option<Vec2> {
 
 /// ∂p/∂u and ∂p/∂v of the triangle under `v`, from its texture coordinates
 /// (or its barycentric parameterisation when the mesh has none).
-fn tangents(scene: &Scene, v: &SceneVertex) -> Option<(Vec3, Vec3)> {
+pub(super) fn tangents(scene: &Scene, v: &SceneVertex) -> Option<(Vec3, Vec3)> {
     let Site::Surface {
         primitive: Primitive::Triangle { mesh, triangle },
         ..

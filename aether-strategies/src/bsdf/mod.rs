@@ -86,7 +86,7 @@ impl<'s> Bsdf<'s> {
         Some(Bsdf {
             material,
             two_sided,
-            frame: Frame::from_normal(normal),
+            frame: shading_frame(scene, v, normal),
             geometric_normal: v.geometric_normal,
             uv: v.uv,
         })
@@ -172,6 +172,22 @@ impl<'s> Bsdf<'s> {
     }
 }
 
+/// The shading frame about `normal`, its first axis along ∂p/∂u where the
+/// surface has texture coordinates (anisotropic roughness follows it, as in
+/// Mitsuba), otherwise any.
+fn shading_frame(scene: &Scene, v: &SceneVertex, normal: Vec3) -> Frame {
+    let along_u = bump::tangents(scene, v)
+        .and_then(|(dpdu, _)| (dpdu - normal * normal.dot(dpdu)).try_normalize());
+    match along_u {
+        Some(s) => Frame {
+            s,
+            t: normal.cross(s),
+            n: normal,
+        },
+        None => Frame::from_normal(normal),
+    }
+}
+
 fn rgb(c: [f32; 3]) -> Vec3 {
     Vec3::from_array(c)
 }
@@ -254,7 +270,10 @@ fn eval_local(material: &Material, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
             let eta = int_ior / ext_ior;
             let (fi, fo) = (fresnel_dielectric(wi.z, eta), fresnel_dielectric(wo.z, eta));
             let specular = match roughness {
-                None if is_mirror(wi, wo) => fi / wi.z,
+                // On the mirror direction the Dirac lobe is all there is (the
+                // diffuse part has measure zero there, and adding it would
+                // count it once per specular sample).
+                None if is_mirror(wi, wo) => return rgb(*specular_reflectance) * (fi / wi.z),
                 None => 0.0,
                 Some(r) => {
                     let h = (wi + wo).normalize();

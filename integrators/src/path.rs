@@ -1,0 +1,137 @@
+//! Path tracing in the sampling language: BSDF sampling with Russian
+//! roulette, direct light sampling at every vertex, and MIS between the two
+//! ways each light vertex could have been sampled.
+
+use aether_core::{Heuristic, Pcg32, RandomSequence, StepKind, StrategyRef, combine};
+use aether_strategies::bsdf::Transport;
+use aether_strategies::camera::Camera;
+use aether_strategies::integrand::Integrand;
+use aether_strategies::lights::Lights;
+use aether_strategies::scattering::{BsdfSampling, Roulette};
+use aether_strategies::scene::Scene;
+use aether_strategies::vertex::SceneVertex;
+use glam::{DVec3, Vec3};
+use smallvec::SmallVec;
+
+/// A unidirectional path tracer with next-event estimation.
+#[derive(Debug)]
+pub struct PathTracer<'s> {
+    scene: &'s Scene,
+    camera: Camera,
+    lights: Option<Lights<'s>>,
+    max_depth: usize,
+    roulette: Roulette,
+    heuristic: Heuristic,
+}
+
+impl<'s> PathTracer<'s> {
+    /// The path tracer of `scene`, with its integrator's maximum depth (in
+    /// edges; −1 for none) and Russian-roulette depth, and the power heuristic.
+    ///
+    /// # Errors
+    /// If the camera cannot be built (an unknown pixel filter).
+    pub fn new(scene: &'s Scene) -> Result<Self, String> {
+        let settings = &scene.integrator;
+        Ok(PathTracer {
+            scene,
+            camera: Camera::new(scene)?,
+            lights: Lights::new(scene),
+            max_depth: usize::try_from(settings.max_depth).unwrap_or(usize::MAX),
+            roulette: Roulette {
+                start: usize::try_from(settings.rr_depth)
+                    .unwrap_or(usize::MAX)
+                    .saturating_add(1),
+                probability: 0.95,
+            },
+            heuristic: Heuristic::POWER,
+        })
+    }
+
+    /// One sample of pixel `pixel`: the radiance estimate of a camera path.
+    pub fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32) -> Vec3 {
+        let Some(lights) = &self.lights else {
+            return Vec3::ZERO;
+        };
+        let (lens, look) = (
+            self.camera.position(),
+            self.camera.direction(self.scene, pixel),
+        );
+        let bsdf = BsdfSampling::new(self.scene, Transport::Radiance, self.roulette);
+        let direct = lights.direct();
+        let f = Integrand::new(self.scene, &self.camera, lights);
+        let mut steps: SmallVec<[(StrategyRef<'_, SceneVertex>, bool); 16]> =
+            SmallVec::from_slice(&[
+                (StrategyRef::One(&lens), false),
+                (StrategyRef::One(&look), false),
+            ]);
+        let mut path = RandomSequence::new();
+        path.append(&lens).append(&look);
+        if path.sample(rng) != StepKind::Vertex {
+            return Vec3::ZERO;
+        }
+        let mut radiance = Vec3::ZERO;
+        loop {
+            let k = path.len() - 1;
+            // Emission reached by the last step (direct sampling cannot see
+            // what the camera sees first).
+            let emitted = f.evaluate(pixel, path.vertices(), &[]);
+            if emitted != DVec3::ZERO {
+                let w = if k == 1 {
+                    1.0
+                } else {
+                    weight(&path, &steps, &direct, self.heuristic)
+                };
+                radiance += estimate(emitted * f64::from(w), &path);
+            }
+            if k >= self.max_depth {
+                break;
+            }
+            let mut to_light = path.clone();
+            to_light.append(&direct);
+            steps.push((StrategyRef::One(&bsdf), false));
+            if to_light.sample(rng) == StepKind::Vertex {
+                let lit = f.evaluate(pixel, to_light.vertices(), &[k]);
+                if lit != DVec3::ZERO {
+                    let w = weight(&to_light, &steps, &bsdf, self.heuristic);
+                    radiance += estimate(lit * f64::from(w), &to_light);
+                }
+            }
+            path.append(&bsdf);
+            if path.sample(rng) != StepKind::Vertex {
+                break;
+            }
+        }
+        radiance
+    }
+}
+
+type Steps<'a> = [(StrategyRef<'a, SceneVertex>, bool)];
+
+/// The MIS weight of `sampled` (made by `steps`) against the same vertices
+/// with the last one taken by `other`.
+fn weight<'a>(
+    sampled: &RandomSequence<'a, SceneVertex>,
+    steps: &Steps<'a>,
+    other: &'a dyn aether_core::DynStrategy<SceneVertex>,
+    heuristic: Heuristic,
+) -> f32 {
+    let mut alternative: SmallVec<[_; 16]> = SmallVec::from_slice(steps);
+    alternative.pop();
+    alternative.push((StrategyRef::One(other), false));
+    match sampled.with_strategies(&alternative) {
+        Some(alt) => combine(&[sampled.clone(), alt], heuristic)[0] as f32,
+        None => 1.0,
+    }
+}
+
+/// f / p, or nothing where the path's density vanishes (a grazing vertex,
+/// whose contribution vanishes with it).
+fn estimate(f: DVec3, path: &RandomSequence<'_, SceneVertex>) -> Vec3 {
+    let p = path.pdf().value();
+    let e = f / p;
+    if p > 0.0 && e.is_finite() {
+        e.as_vec3()
+    } else {
+        Vec3::ZERO
+    }
+}
