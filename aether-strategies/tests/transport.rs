@@ -382,7 +382,7 @@ fn bsdf_sampling_and_evaluation_give_the_same_albedo() {
         let b = Bsdf::at(&scene, &x).unwrap();
         let ng = x.geometric_normal;
         let to_camera = Vec3::new(0.5, 0.1, 0.8).normalize();
-        let mut rng = Pcg32::new(5, 5);
+        let mut rng = Pcg32::new(6, 1);
         let n = if name.contains("glass") {
             3_000_000
         } else {
@@ -403,18 +403,23 @@ fn bsdf_sampling_and_evaluation_give_the_same_albedo() {
             }
         }
         by_sampling /= n as f64;
-        // Uniform directions on the sphere see the continuous lobes only.
+        // Uniform directions on the sphere, stratified (a jittered grid in
+        // z and φ), see the continuous lobes only.
         let mut by_quadrature = 0.0f64;
-        for _ in 0..n {
-            let z = 1.0 - 2.0 * rng.next_f32();
-            let phi = std::f32::consts::TAU * rng.next_f32();
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-            let e =
-                f64::from(b.eval(w, to_camera).x * w.dot(ng).abs()) * 4.0 * std::f64::consts::PI;
-            by_quadrature += e;
-            if w.dot(ng) < 0.0 {
-                below[1] += e;
+        let (nz, nphi) = (n / 500, 500);
+        for i in 0..nz {
+            for j in 0..nphi {
+                let z = 1.0 - 2.0 * (i as f32 + rng.next_f32()) / nz as f32;
+                let phi = std::f32::consts::TAU * (j as f32 + rng.next_f32()) / nphi as f32;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let w = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let e = f64::from(b.eval(w, to_camera).x * w.dot(ng).abs())
+                    * 4.0
+                    * std::f64::consts::PI;
+                by_quadrature += e;
+                if w.dot(ng) < 0.0 {
+                    below[1] += e;
+                }
             }
         }
         by_quadrature /= n as f64;
@@ -427,11 +432,8 @@ fn bsdf_sampling_and_evaluation_give_the_same_albedo() {
             below[0] / n as f64,
             below[1] / n as f64
         );
-        // Known and not yet explained: rough glass samples 0.7–0.9 % less
-        // transmitted albedo than the quadrature finds (4σ at 3M samples,
-        // Beckmann and GGX alike), inside this 1 % tolerance.
         assert!(
-            (by_sampling - by_quadrature).abs() < 0.01 * by_quadrature.max(0.1),
+            (by_sampling - by_quadrature).abs() < 5e-3 * by_quadrature.max(0.1),
             "{name}: sampling {by_sampling}, quadrature {by_quadrature}"
         );
     }
