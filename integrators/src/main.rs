@@ -102,9 +102,9 @@ fn run(args: RenderArgs) -> Result<(), String> {
     let wanted = args.integrator.map_or(scene.integrator.name.clone(), |i| {
         format!("{i:?}").to_lowercase()
     });
-    if wanted != "path" {
+    if wanted != "path" && wanted != "direct" {
         eprintln!(
-            "note: only the path tracer is written in the sampling language yet; '{wanted}' is rendered with the stand-in direct-lighting estimator"
+            "note: only path and direct are written in the sampling language yet; '{wanted}' is rendered with the stand-in direct-lighting estimator"
         );
     }
     scene.integrator.name = wanted;

@@ -47,6 +47,18 @@ impl<'s> PathTracer<'s> {
         })
     }
 
+    /// Direct lighting: the same tracer stopped after the first bounce
+    /// (light sampling and BSDF sampling at the first hit, weighed by MIS).
+    ///
+    /// # Errors
+    /// As [`PathTracer::new`].
+    pub fn direct(scene: &'s Scene) -> Result<Self, String> {
+        Ok(PathTracer {
+            max_depth: 2,
+            ..PathTracer::new(scene)?
+        })
+    }
+
     /// One sample of pixel `pixel`: the radiance estimate of a camera path.
     pub fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32) -> Vec3 {
         let Some(lights) = &self.lights else {

@@ -50,8 +50,8 @@ pub struct Rendered {
     pub complete: bool,
 }
 
-/// Renders `scene`: with the path tracer if its integrator is `path`,
-/// otherwise with the stand-in direct-lighting estimator.
+/// Renders `scene`: with the path tracer if its integrator is `path` or
+/// `direct` (depth 2), otherwise with the stand-in direct-lighting estimator.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
     let (w, h) = (scene.film.width, scene.film.height);
     let filter = Filter::named(&scene.film.filter)
@@ -60,6 +60,7 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
     let preview = Preview::new(scene);
     let tracer = match scene.integrator.name.as_str() {
         "path" => Some(PathTracer::new(scene)?),
+        "direct" => Some(PathTracer::direct(scene)?),
         _ => None,
     };
     let [cx, cy, cw, ch] = scene.film.crop;

@@ -10,7 +10,10 @@ use integrators::render::{Settings, render};
 fn furnace_room() -> Scene {
     let dir = std::env::temp_dir().join(format!("aether-path-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("furnace.xml");
+    // One file per call: the tests run in parallel.
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let path = dir.join(format!("furnace{n}.xml"));
     std::fs::write(
         &path,
         "<scene version=\"0.5.0\">
@@ -55,4 +58,24 @@ fn the_path_tracer_renders_a_furnace_at_l_over_one_minus_rho() {
     println!("furnace: mean {mean:.5} ± {error:.5} over {n} pixels (expected 2)");
     assert!(error < 3e-3, "{error}");
     assert!((mean - 2.0).abs() < 1e-2, "{mean}");
+}
+
+#[test]
+fn direct_lighting_stops_after_one_bounce() {
+    let mut scene = furnace_room();
+    scene.integrator.name = "direct".to_string();
+    let settings = Settings {
+        spp: 32,
+        seed: 5,
+        time_limit: None,
+        threads: None,
+        progress: false,
+    };
+    let r = render(&scene, &settings, &AtomicBool::new(false)).unwrap();
+    let image = r.film.image();
+    let n = image.len() as f64;
+    let mean = image.iter().map(|c| f64::from(c[0])).sum::<f64>() / n;
+    // Emission seen directly, plus one bounce of it: L + ρ L.
+    println!("direct: mean {mean:.5} (expected 1.5)");
+    assert!((mean - 1.5).abs() < 5e-3, "{mean}");
 }
