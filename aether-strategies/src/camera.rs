@@ -73,6 +73,26 @@ impl PixelFilter {
     }
 }
 
+/// Half the film's extent on the plane z = 1 in front of the camera, along
+/// x and y: the tangents of half the field of view, with Mitsuba's rules for
+/// the axis the scene's `fov` is measured along.
+#[must_use]
+pub fn film_tangents(scene: &Scene) -> Vec2 {
+    let (w, h) = (scene.film.width as f32, scene.film.height as f32);
+    let t = (scene.camera.fov.to_radians() * 0.5).tan();
+    let aspect = w / h;
+    match scene.camera.fov_axis.as_str() {
+        "y" => Vec2::new(t * aspect, t),
+        "diagonal" => {
+            let d = t / (1.0 + 1.0 / (aspect * aspect)).sqrt();
+            Vec2::new(d, d / aspect)
+        }
+        "smaller" if aspect > 1.0 => Vec2::new(t * aspect, t),
+        "larger" if aspect < 1.0 => Vec2::new(t * aspect, t),
+        _ => Vec2::new(t, t / aspect),
+    }
+}
+
 /// The scene's camera: a pinhole or a thin lens, with its film.
 #[derive(Clone, Debug)]
 pub struct Camera {
@@ -96,18 +116,7 @@ impl Camera {
             .ok_or_else(|| format!("unknown pixel filter '{}'", scene.film.filter))?;
         let c = &scene.camera;
         let (w, h) = (scene.film.width as f32, scene.film.height as f32);
-        let t = (c.fov.to_radians() * 0.5).tan();
-        let aspect = w / h;
-        let tan = match c.fov_axis.as_str() {
-            "y" => Vec2::new(t * aspect, t),
-            "diagonal" => {
-                let d = t / (1.0 + 1.0 / (aspect * aspect)).sqrt();
-                Vec2::new(d, d / aspect)
-            }
-            "smaller" if aspect > 1.0 => Vec2::new(t * aspect, t),
-            "larger" if aspect < 1.0 => Vec2::new(t * aspect, t),
-            _ => Vec2::new(t, t / aspect),
-        };
+        let tan = film_tangents(scene);
         Ok(Camera {
             frame: frame_of(c.to_world),
             origin: c.to_world.transform_point3(Vec3::ZERO),

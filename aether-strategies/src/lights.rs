@@ -15,11 +15,8 @@ use glam::Vec3;
 use crate::camera::frame_of;
 use crate::geometry::Primitive;
 use crate::scene::{Emitter, Scene};
+use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
-
-fn luminance(c: [f32; 3]) -> f64 {
-    0.2126 * f64::from(c[0]) + 0.7152 * f64::from(c[1]) + 0.0722 * f64::from(c[2])
-}
 
 /// What an emitter is made of, for sampling.
 #[derive(Debug)]

@@ -16,6 +16,13 @@ const XYZ_TO_RGB: [[f64; 3]; 3] = [
     [0.055648, -0.204043, 1.057311],
 ];
 
+/// The luminance Y of a linear sRGB colour (Rec. 709 weights): the one
+/// scalar that light power, environment-map importance and bump heights use.
+#[must_use]
+pub fn luminance(rgb: [f32; 3]) -> f64 {
+    0.2126 * f64::from(rgb[0]) + 0.7152 * f64::from(rgb[1]) + 0.0722 * f64::from(rgb[2])
+}
+
 /// The value of a piecewise-linear spectrum at `lambda`; zero outside the
 /// wavelengths it names (as Mitsuba's interpolated spectrum).
 fn interpolate(samples: &[(f64, f64)], lambda: f64) -> f64 {

@@ -2,6 +2,7 @@
 //! conventions: +z forward, x to the left, the field of view along an axis).
 
 use aether_core::primitives::UniformDisk;
+use aether_strategies::camera::film_tangents;
 use aether_strategies::scene::Scene;
 use glam::{Mat4, Vec3};
 
@@ -21,18 +22,7 @@ impl CameraRays {
     #[must_use]
     pub fn new(scene: &Scene) -> Self {
         let (w, h) = (scene.film.width as f32, scene.film.height as f32);
-        let t = (scene.camera.fov.to_radians() * 0.5).tan();
-        let aspect = w / h;
-        let tan = match scene.camera.fov_axis.as_str() {
-            "y" => [t * aspect, t],
-            "diagonal" => {
-                let d = t / (1.0 + 1.0 / (aspect * aspect)).sqrt();
-                [d, d / aspect]
-            }
-            "smaller" if aspect > 1.0 => [t * aspect, t],
-            "larger" if aspect < 1.0 => [t * aspect, t],
-            _ => [t, t / aspect],
-        };
+        let tan = film_tangents(scene).to_array();
         CameraRays {
             to_world: scene.camera.to_world,
             tan,

@@ -8,6 +8,7 @@ use aether_core::primitives::DiscreteDistribution;
 use aether_core::{Pcg32, UniformSource};
 use aether_strategies::geometry::{Hit, Primitive};
 use aether_strategies::scene::{Emitter, Material, Scene, Texture};
+use aether_strategies::spectrum::luminance;
 use glam::Vec3;
 
 enum Light {
@@ -41,10 +42,6 @@ impl std::fmt::Debug for Preview<'_> {
     }
 }
 
-fn luminance(c: Vec3) -> f64 {
-    f64::from(0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z)
-}
-
 impl<'s> Preview<'s> {
     /// Prepares the lights of `scene`.
     #[must_use]
@@ -57,7 +54,7 @@ impl<'s> Preview<'s> {
                 Emitter::Area { radiance, shape } if shape < meshes => {
                     let mesh = &scene.geometry.meshes()[shape];
                     for t in 0..mesh.triangles.len() {
-                        weights.push(mesh.triangle_area(t) * luminance(Vec3::from(radiance)));
+                        weights.push(mesh.triangle_area(t) * luminance(radiance));
                         lights.push(Light::Triangle {
                             mesh: shape,
                             triangle: t,
@@ -70,7 +67,7 @@ impl<'s> Preview<'s> {
                     weights.push(
                         4.0 * std::f64::consts::PI
                             * f64::from(s.radius).powi(2)
-                            * luminance(Vec3::from(radiance)),
+                            * luminance(radiance),
                     );
                     lights.push(Light::Sphere {
                         sphere: shape - meshes,
@@ -81,7 +78,7 @@ impl<'s> Preview<'s> {
                     position,
                     intensity,
                 } => {
-                    weights.push(4.0 * std::f64::consts::PI * luminance(Vec3::from(intensity)));
+                    weights.push(4.0 * std::f64::consts::PI * luminance(intensity));
                     lights.push(Light::Point {
                         position,
                         intensity: Vec3::from(intensity),

@@ -5,11 +5,8 @@ use glam::{Vec2, Vec3};
 
 use crate::geometry::Primitive;
 use crate::scene::{Scene, Texture};
+use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
-
-fn luminance(c: [f32; 3]) -> f32 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
-}
 
 /// Half a texel in uv, the finite-difference step that resolves a bitmap's
 /// bilinear slopes; `None` for textures without variation.
@@ -63,7 +60,7 @@ pub(super) fn perturbed_normal(
     let (Some(step), Some((dpdu, dpdv))) = (half_texel(height), tangents(scene, v)) else {
         return normal;
     };
-    let h = |du: f32, dv: f32| luminance(height.eval([v.uv.x + du, v.uv.y + dv]));
+    let h = |du: f32, dv: f32| luminance(height.eval([v.uv.x + du, v.uv.y + dv])) as f32;
     let dhdu = (h(step.x, 0.0) - h(-step.x, 0.0)) / (2.0 * step.x);
     let dhdv = (h(0.0, step.y) - h(0.0, -step.y)) / (2.0 * step.y);
     let n = (dpdu + normal * dhdu).cross(dpdv + normal * dhdv);
