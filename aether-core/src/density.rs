@@ -247,6 +247,16 @@ impl PathDensity {
         }
     }
 
+    /// The product of two path densities (of disjoint sets of vertices).
+    #[must_use]
+    pub fn times_path(self, other: PathDensity) -> PathDensity {
+        PathDensity {
+            value: self.value * other.value,
+            zeros: self.zeros + other.zeros,
+            dirac: self.dirac + other.dirac,
+        }
+    }
+
     /// Divides out a factor that was multiplied in before.
     #[must_use]
     pub fn divided_by(self, d: Density) -> PathDensity {

@@ -119,7 +119,7 @@ pub(crate) struct Span<'s, V> {
 }
 
 impl<'s, V> Span<'s, V> {
-    fn new(
+    pub(crate) fn new(
         start: usize,
         arity: usize,
         strategy: Option<StrategyRef<'s, V>>,
@@ -540,7 +540,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// The cache key of `span`'s density factor on this path, if the
     /// strategy's memory is short enough to cache.
-    fn key(&self, span: &Span<'s, V>) -> Option<FactorKey> {
+    fn key(&self, span: &Span<'_, V>) -> Option<FactorKey> {
         let memory = span.memory;
         if memory > 2 {
             return None;
@@ -577,7 +577,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// The density of this path's vertices in `span`, under the span's
     /// strategy and direction, reusing the density recorded while sampling
     /// or a cached one where the key matches.
-    pub(crate) fn factor(&self, span: &Span<'s, V>, cache: Option<&mut FactorCache>) -> Density {
+    pub(crate) fn factor(&self, span: &Span<'_, V>, cache: Option<&mut FactorCache>) -> Density {
         let end = span.start + span.arity;
         if end > self.len() {
             return Density::zero(Measure::Area);
@@ -611,7 +611,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// Runs `span`'s strategy in density mode on this path's vertices.
-    fn evaluate(&self, span: &Span<'s, V>, strategy: StrategyRef<'s, V>) -> Density {
+    fn evaluate(&self, span: &Span<'_, V>, strategy: StrategyRef<'_, V>) -> Density {
         let end = span.start + span.arity;
         if span.reversed {
             let prefix = Prefix::reversed(&self.vertices[end..]);

@@ -61,6 +61,21 @@ fn gamma(n: f32) -> f32 {
     n * e / (1.0 - n * e)
 }
 
+thread_local! {
+    static RAYS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+fn count_ray() {
+    RAYS.with(|r| r.set(r.get() + 1));
+}
+
+/// The number of rays (closest-hit and shadow) this thread has cast so far:
+/// the render loop reads it before and after a tile to report rays per second.
+#[must_use]
+pub fn rays_cast() -> u64 {
+    RAYS.with(std::cell::Cell::get)
+}
+
 /// The origin of a ray leaving a surface point `p` (with error bound
 /// `error` and normal `n`) in direction `dir`: `p` pushed along the normal,
 /// to the side of `dir`, past its rounding error.
@@ -212,6 +227,7 @@ impl Geometry {
     /// t ∈ (0, `t_max`).
     #[must_use]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
+        count_ray();
         let shear = Shear::new(origin, dir);
         let mut best: Option<(f32, usize, [f32; 3])> = None;
         if let Some(bvh) = &self.bvh {
@@ -250,6 +266,7 @@ impl Geometry {
     /// t ∈ (0, `t_max`). Stops at the first hit found.
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        count_ray();
         if self
             .spheres
             .iter()

@@ -8,12 +8,15 @@ use crate::scene::Scene;
 use crate::vertex::SceneVertex;
 
 /// Russian roulette: from the `start`-th vertex of a path on, a step goes
-/// on with probability `probability` (the event is part of the density).
+/// on with probability min(`probability`, albedo), the albedo being the
+/// largest channel of the surface's reflectance ([`Bsdf::albedo`]). The
+/// event is part of the density; it depends only on the vertex scattered
+/// at, so densities stay memoryless and paths in dark scenes stay short.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Roulette {
     /// Vertices sampled without roulette (the camera or light vertex counts).
     pub start: usize,
-    /// Probability of going on once roulette applies.
+    /// Largest probability of going on once roulette applies.
     pub probability: f64,
 }
 
@@ -63,12 +66,14 @@ impl Strategy<SceneVertex> for BsdfSampling<'_> {
     ) -> impl Distribution<Value = Step<SceneVertex>> + 'a {
         let x = prefix.last().expect("a vertex to scatter at");
         let from = prefix.back(1).expect("a direction to scatter from");
-        let q = if prefix.len() >= self.roulette.start {
-            self.roulette.probability
-        } else {
-            1.0
+        let bsdf = Bsdf::at(self.scene, x);
+        let q = match &bsdf {
+            Some(b) if prefix.len() >= self.roulette.start => {
+                self.roulette.probability.min(f64::from(b.albedo()))
+            }
+            _ => 1.0,
         };
-        let lobes = Bsdf::at(self.scene, x)
+        let lobes = bsdf
             .zip(x.direction_to(from))
             .map(|(bsdf, given)| bsdf.sampling(given, self.mode));
         RussianRoulette::new(q, lobes.map(|d| Intersect::new(x, d, self.scene)))

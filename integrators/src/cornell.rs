@@ -1,7 +1,8 @@
 //! The built-in scene: a Cornell box in its classic dimensions (in
 //! millimetres: a room about 555 on a side, a square light under the
 //! ceiling, a short and a tall block), written here from its published
-//! measurements.
+//! measurements, with a portal just under the light for tridirectional
+//! path tracing.
 
 use aether_strategies::geometry::Geometry;
 use aether_strategies::mesh::TriangleMesh;
@@ -181,7 +182,17 @@ pub fn cornell_box(width: u32, height: u32, spp: u32) -> Scene {
             max_depth: -1,
             rr_depth: 5,
         },
-        portals: Vec::new(),
+        // The opening under the lamp, a little wider than it: light reaches
+        // the box through it, so tridirectional tracing has a portal here.
+        portals: vec![quads(
+            "portal under the light",
+            &[[
+                [363.0, 540.0, 207.0],
+                [363.0, 540.0, 352.0],
+                [193.0, 540.0, 352.0],
+                [193.0, 540.0, 207.0],
+            ]],
+        )],
         warnings: Vec::new(),
     }
 }

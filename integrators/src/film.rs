@@ -1,61 +1,9 @@
-//! The film: pixel filters (importance-sampled, so that each sample lands in
-//! one pixel and images do not depend on the number of threads), per-pixel
-//! accumulation, a thread-safe splat buffer for light paths, and a count of
-//! the non-finite samples that were dropped.
+//! The film: per-pixel accumulation of camera-path estimates, a
+//! thread-safe splat buffer for light paths, and a count of the non-finite
+//! samples that were dropped. (Pixel filters are sampled by the camera
+//! strategy: each camera sample lands in one pixel.)
 
 use std::sync::atomic::{AtomicU64, Ordering};
-
-use aether_core::Distribution;
-use aether_core::primitives::PiecewiseConstant1D;
-
-/// A reconstruction filter, sampled rather than splatted: a sample's
-/// position within the filter's footprint is drawn from the filter itself.
-#[derive(Clone, Debug)]
-pub enum Filter {
-    /// One pixel wide.
-    Box,
-    /// A tent of radius one pixel.
-    Tent,
-    /// A Gaussian of standard deviation 0.5 pixel, truncated at 2 pixels (Mitsuba's).
-    Gaussian(PiecewiseConstant1D),
-}
-
-impl Filter {
-    /// The filter named `box`, `tent` or `gaussian`.
-    #[must_use]
-    pub fn named(name: &str) -> Option<Filter> {
-        Some(match name {
-            "box" => Filter::Box,
-            "tent" => Filter::Tent,
-            "gaussian" => {
-                let weights: Vec<f64> = (0..256)
-                    .map(|i| {
-                        let x = -2.0 + 4.0 * (f64::from(i) + 0.5) / 256.0;
-                        ((-x * x / (2.0 * 0.25)).exp() - (-4.0f64 / 0.5).exp()).max(0.0)
-                    })
-                    .collect();
-                Filter::Gaussian(PiecewiseConstant1D::new(&weights).expect("positive weights"))
-            }
-            _ => return None,
-        })
-    }
-
-    /// An offset from the pixel centre, in pixels, for uniforms `u`.
-    #[must_use]
-    pub fn offset(&self, u: [f32; 2]) -> [f32; 2] {
-        match self {
-            Filter::Box => [u[0] - 0.5, u[1] - 0.5],
-            Filter::Tent => u.map(|x| {
-                if x < 0.5 {
-                    (2.0 * x).sqrt() - 1.0
-                } else {
-                    1.0 - (2.0 - 2.0 * x).sqrt()
-                }
-            }),
-            Filter::Gaussian(d) => u.map(|x| d.sample(&[x]).map_or(0.0, |s| 4.0 * s.value - 2.0)),
-        }
-    }
-}
 
 /// Accumulated radiance per pixel, and the samples that were dropped.
 #[derive(Debug)]
@@ -66,6 +14,7 @@ pub struct Film {
     pub height: u32,
     sums: Vec<[f64; 3]>,
     counts: Vec<u32>,
+    splats: Option<Vec<[f32; 3]>>,
     dropped: AtomicU64,
 }
 
@@ -79,6 +28,7 @@ impl Film {
             height,
             sums: vec![[0.0; 3]; n],
             counts: vec![0; n],
+            splats: None,
             dropped: AtomicU64::new(0),
         }
     }
@@ -98,6 +48,17 @@ impl Film {
         self.dropped.load(Ordering::Relaxed)
     }
 
+    /// Adds the light paths splatted into `splats` over `samples` samples of
+    /// the whole film: each light path estimates every pixel at once, so
+    /// their sum is divided by the number of light paths.
+    pub fn add_splats(&mut self, splats: &SplatBuffer, samples: u64) {
+        if samples == 0 {
+            return;
+        }
+        self.splats = Some(splats.image(1.0 / samples as f64));
+        self.dropped.fetch_add(splats.dropped(), Ordering::Relaxed);
+    }
+
     /// The image: mean radiance per pixel (black where nothing was rendered).
     #[must_use]
     pub fn image(&self) -> Vec<[f32; 3]> {
@@ -110,6 +71,11 @@ impl Film {
                 } else {
                     s.map(|c| (c / f64::from(n)) as f32)
                 }
+            })
+            .zip(0..)
+            .map(|(c, i)| match &self.splats {
+                Some(splats) => [0, 1, 2].map(|k| c[k] + splats[i][k]),
+                None => c,
             })
             .collect()
     }
@@ -194,25 +160,6 @@ impl SplatBuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn filters_stay_in_their_footprint_and_are_centred() {
-        for (name, radius) in [("box", 0.5), ("tent", 1.0), ("gaussian", 2.0)] {
-            let f = Filter::named(name).unwrap();
-            let mut mean = 0.0;
-            for i in 0..1000 {
-                let u = (i as f32 + 0.5) / 1000.0;
-                let o = f.offset([u, 1.0 - u]);
-                assert!(
-                    o[0].abs() <= radius + 1e-6 && o[1].abs() <= radius + 1e-6,
-                    "{name} {o:?}"
-                );
-                mean += o[0];
-            }
-            assert!((mean / 1000.0).abs() < 1e-2, "{name} {mean}");
-        }
-        assert!(Filter::named("lanczos").is_none());
-    }
 
     #[test]
     fn splats_add_up_across_threads_and_drop_nan() {

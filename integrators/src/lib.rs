@@ -1,20 +1,26 @@
 //! Light-transport algorithms written as short combinators over
-//! [`aether_core::RandomSequence`] and [`aether_core::combine`], plus the
-//! film, the render loop and the command-line program `aether`.
+//! [`aether_core::RandomSequence`] and MIS weights derived by the language
+//! ([`aether_core::weight_of_split`]), plus the film, the render loop and
+//! the command-line program `aether`.
 //!
-//! Built so far: the [`film`] (filters, accumulation, splats, dropped
-//! samples), [`output`] (EXR and PNG), the parallel [`render`] loop, the
-//! built-in [`cornell`] box, [`camera`] rays, and a stand-in
-//! direct-lighting estimator ([`preview`]) that the integrators of the
-//! sampling language will replace.
+//! - [`path`]: path tracing with next-event estimation (and direct lighting,
+//!   the same tracer stopped after one bounce);
+//! - [`light`]: light tracing, splatted;
+//! - [`bdpt`]: bidirectional path tracing over every (s, t), and
+//!   tridirectional path tracing with a portal segment; [`techniques`] holds
+//!   its optional (s, t) images;
+//! - [`estimator`]: what the [`render`] loop asks of each; [`film`],
+//!   [`output`] (EXR and PNG), the built-in [`cornell`] box.
 #![deny(unsafe_code)]
 
-pub mod camera;
+pub mod bdpt;
 pub mod cornell;
+pub mod estimator;
 pub mod film;
+pub mod light;
 pub mod output;
 pub mod path;
-pub mod preview;
 pub mod render;
+pub mod techniques;
 
 pub use aether_strategies as strategies;

@@ -9,9 +9,10 @@ use std::time::Duration;
 
 use aether_strategies::scene::Scene;
 use clap::{Parser, Subcommand, ValueEnum};
+use integrators::bdpt::Bdpt;
 use integrators::cornell::cornell_box;
-use integrators::output::{write_exr, write_png};
-use integrators::render::{Settings, render};
+use integrators::output::{Comparison, read_exr, write_exr, write_png};
+use integrators::render::{Settings, render, render_with};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -28,6 +29,37 @@ struct Cli {
 enum Command {
     /// Render a scene (the built-in Cornell box without one) to EXR and PNG.
     Render(RenderArgs),
+    /// Compare EXR images with a reference: means, their relative difference and RMSE.
+    Compare {
+        /// The reference image.
+        reference: PathBuf,
+        /// Images of the same size.
+        images: Vec<PathBuf>,
+    },
+}
+
+fn compare(reference: &std::path::Path, images: &[PathBuf]) -> Result<(), String> {
+    let (w, h, r) = read_exr(reference)?;
+    for path in images {
+        let (iw, ih, image) = read_exr(path)?;
+        let c = Comparison::of(&image, &r)
+            .filter(|_| (iw, ih) == (w, h))
+            .ok_or_else(|| {
+                format!(
+                    "{}: {iw}×{ih}, but the reference is {w}×{h}",
+                    path.display()
+                )
+            })?;
+        println!(
+            "{}: mean {:.6} (reference {:.6}, {:+.3} %), RMSE {:.6}",
+            path.display(),
+            c.mean,
+            c.reference_mean,
+            100.0 * c.relative_difference(),
+            c.rmse
+        );
+    }
+    Ok(())
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -70,6 +102,12 @@ struct RenderArgs {
     /// Scene parameter, as name=value (overrides the file's <default>).
     #[arg(short = 'D', value_parser = parse_param)]
     define: Vec<(String, String)>,
+    /// Also write BDPT's (s, t) technique images, weighted and unweighted, into this folder.
+    #[arg(long)]
+    techniques: Option<PathBuf>,
+    /// Longest paths, in vertices, with technique images.
+    #[arg(long, default_value_t = 5)]
+    technique_vertices: usize,
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
@@ -102,11 +140,6 @@ fn run(args: RenderArgs) -> Result<(), String> {
     let wanted = args.integrator.map_or(scene.integrator.name.clone(), |i| {
         format!("{i:?}").to_lowercase()
     });
-    if wanted != "path" && wanted != "direct" {
-        eprintln!(
-            "note: only path and direct are written in the sampling language yet; '{wanted}' is rendered with the stand-in direct-lighting estimator"
-        );
-    }
     scene.integrator.name = wanted;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -128,7 +161,22 @@ fn run(args: RenderArgs) -> Result<(), String> {
         threads: args.threads,
         progress: true,
     };
-    let r = render(&scene, &settings, &stop)?;
+    let r = match &args.techniques {
+        Some(dir) => {
+            let bdpt = match scene.integrator.name.as_str() {
+                "bdpt" => Bdpt::new(&scene)?,
+                "tridir" => Bdpt::tridirectional(&scene)?,
+                other => return Err(format!("--techniques needs -i bdpt or tridir, not {other}")),
+            };
+            let bdpt = bdpt.with_technique_images(args.technique_vertices);
+            let r = render_with(&scene, &bdpt, &settings, &stop)?;
+            if let Some(images) = bdpt.technique_images() {
+                images.write(dir, r.samples, scene.film.spp)?;
+            }
+            r
+        }
+        None => render(&scene, &settings, &stop)?,
+    };
     let image = r.film.image();
     let (w, h) = (scene.film.width, scene.film.height);
     write_exr(&args.output, w, h, &image, scene.film.spp, r.seconds)?;
@@ -144,18 +192,13 @@ fn run(args: RenderArgs) -> Result<(), String> {
     if r.film.dropped() > 0 {
         eprintln!("{} NaN or infinite samples were dropped", r.film.dropped());
     }
-    // The path tracer does not count its rays yet (the benchmarks will).
-    let rays = if r.rays > 0 {
-        format!(", {:.2} Mrays/s", r.rays as f64 / r.seconds / 1e6)
-    } else {
-        String::new()
-    };
     println!(
-        "{} and {}: {:.2} s, {:.0} samples/s{rays}",
+        "{} and {}: {:.2} s, {:.0} samples/s, {:.2} Mrays/s",
         args.output.display(),
         png.display(),
         r.seconds,
         r.samples as f64 / r.seconds,
+        r.rays as f64 / r.seconds / 1e6,
     );
     Ok(())
 }
@@ -164,6 +207,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run(args),
+        Command::Compare { reference, images } => compare(&reference, &images),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

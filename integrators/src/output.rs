@@ -1,4 +1,4 @@
-//! Writing images: EXR (f32 linear RGB, with spp and render time in the
+//! Reading and writing images: EXR (f32 linear RGB, with spp and render time in the
 //! header) and a PNG preview (sRGB, with an exposure).
 
 use std::path::Path;
@@ -92,5 +92,65 @@ mod tests {
         );
         write_png(&dir.join("t.png"), 3, 2, &rgb, 0.0).unwrap();
         assert!(std::fs::metadata(dir.join("t.png")).unwrap().len() > 0);
+    }
+}
+
+/// Reads the RGB channels of an EXR file: width, height and pixels in rows.
+///
+/// # Errors
+/// If the file cannot be read or has no RGB layer.
+pub fn read_exr(path: &Path) -> std::result::Result<(u32, u32, Vec<[f32; 3]>), String> {
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![[0.0f32; 3]; size.area()]),
+        |(w, pixels), Vec2(x, y), (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[y * *w + x] = [r, g, b];
+        },
+    )
+    .map_err(|e| format!("{}: cannot read the EXR image: {e}", path.display()))?;
+    let size = image.layer_data.size;
+    let (_, pixels) = image.layer_data.channel_data.pixels;
+    Ok((size.width() as u32, size.height() as u32, pixels))
+}
+
+/// The comparison of an image with a reference of the same size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Comparison {
+    /// Mean of the image over pixels and channels.
+    pub mean: f64,
+    /// Mean of the reference.
+    pub reference_mean: f64,
+    /// Root-mean-square difference over pixels and channels.
+    pub rmse: f64,
+}
+
+impl Comparison {
+    /// Compares `image` with `reference`; `None` if their sizes differ.
+    #[must_use]
+    pub fn of(image: &[[f32; 3]], reference: &[[f32; 3]]) -> Option<Comparison> {
+        if image.len() != reference.len() || image.is_empty() {
+            return None;
+        }
+        let n = 3.0 * image.len() as f64;
+        let (mut a, mut b, mut d2) = (0.0, 0.0, 0.0);
+        for (p, q) in image.iter().zip(reference) {
+            for k in 0..3 {
+                let (x, y) = (f64::from(p[k]), f64::from(q[k]));
+                a += x;
+                b += y;
+                d2 += (x - y) * (x - y);
+            }
+        }
+        Some(Comparison {
+            mean: a / n,
+            reference_mean: b / n,
+            rmse: (d2 / n).sqrt(),
+        })
+    }
+
+    /// (mean − reference mean) / reference mean.
+    #[must_use]
+    pub fn relative_difference(&self) -> f64 {
+        (self.mean - self.reference_mean) / self.reference_mean
     }
 }

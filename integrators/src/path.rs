@@ -13,6 +13,8 @@ use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
+use crate::estimator::{Estimator, Splats};
+
 /// A unidirectional path tracer with next-event estimation.
 #[derive(Debug)]
 pub struct PathTracer<'s> {
@@ -58,9 +60,10 @@ impl<'s> PathTracer<'s> {
             ..PathTracer::new(scene)?
         })
     }
+}
 
-    /// One sample of pixel `pixel`: the radiance estimate of a camera path.
-    pub fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32) -> Vec3 {
+impl Estimator for PathTracer<'_> {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, _splats: &mut Splats) -> Vec3 {
         let Some(lights) = &self.lights else {
             return Vec3::ZERO;
         };

@@ -7,15 +7,18 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use aether_core::{Pcg32, UniformSource};
+use aether_core::Pcg32;
 use aether_strategies::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::camera::CameraRays;
-use crate::film::{Film, Filter, is_valid};
+use aether_strategies::geometry::rays_cast;
+
+use crate::bdpt::Bdpt;
+use crate::estimator::{Estimator, Splats};
+use crate::film::{Film, SplatBuffer, is_valid};
+use crate::light::LightTracer;
 use crate::path::PathTracer;
-use crate::preview::Preview;
 
 /// Tiles are squares of this many pixels on a side.
 const TILE: u32 = 16;
@@ -50,19 +53,48 @@ pub struct Rendered {
     pub complete: bool,
 }
 
-/// Renders `scene`: with the path tracer if its integrator is `path` or
-/// `direct` (depth 2), otherwise with the stand-in direct-lighting estimator.
+/// The estimator the scene's integrator names: `path`, `direct`, `light`,
+/// `bdpt` or `tridir`.
+///
+/// # Errors
+/// For other names (MLT and gradient-domain tracing are not built yet), and
+/// where the estimator cannot be built (no portal for `tridir`).
+pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
+    Ok(match scene.integrator.name.as_str() {
+        "path" => Box::new(PathTracer::new(scene)?),
+        "direct" => Box::new(PathTracer::direct(scene)?),
+        "light" => Box::new(LightTracer::new(scene)?),
+        "bdpt" => Box::new(Bdpt::new(scene)?),
+        "tridir" => Box::new(Bdpt::tridirectional(scene)?),
+        other => {
+            return Err(format!(
+                "the integrator '{other}' is not available yet; use path, direct, light, bdpt or tridir"
+            ));
+        }
+    })
+}
+
+/// Renders `scene` with the integrator it names ([`estimator`]).
+///
+/// # Errors
+/// As [`estimator`], or if the worker threads cannot start.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
+    render_with(scene, estimator(scene)?.as_ref(), settings, stop)
+}
+
+/// Renders `scene` with `estimator`: camera paths by tiles, each pixel from
+/// its own random stream; light-path contributions go to the film's splat
+/// buffer, whose sum is divided by the number of samples taken.
+///
+/// # Errors
+/// If the worker threads cannot start.
+pub fn render_with(
+    scene: &Scene,
+    estimator: &dyn Estimator,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<Rendered, String> {
     let (w, h) = (scene.film.width, scene.film.height);
-    let filter = Filter::named(&scene.film.filter)
-        .ok_or_else(|| format!("unknown filter '{}'", scene.film.filter))?;
-    let camera = CameraRays::new(scene);
-    let preview = Preview::new(scene);
-    let tracer = match scene.integrator.name.as_str() {
-        "path" => Some(PathTracer::new(scene)?),
-        "direct" => Some(PathTracer::direct(scene)?),
-        _ => None,
-    };
     let [cx, cy, cw, ch] = scene.film.crop;
     let tiles: Vec<(u32, u32)> = (cy..cy + ch)
         .step_by(TILE as usize)
@@ -78,6 +110,7 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
             .expect("valid template"),
     );
     let film = Mutex::new(Film::new(w, h));
+    let splats = SplatBuffer::new(w, h);
     let rays = AtomicU64::new(0);
     let start = Instant::now();
     let out_of_time = || {
@@ -97,29 +130,25 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
                 if out_of_time() {
                     return false;
                 }
+                let rays_before = rays_cast();
                 let mut local = Vec::new();
-                let mut tile_rays = 0u64;
+                let mut scratch = Splats::new();
                 for y in ty..(ty + TILE).min(cy + ch) {
                     for x in tx..(tx + TILE).min(cx + cw) {
                         let mut rng =
                             Pcg32::new(settings.seed, u64::from(y) * u64::from(w) + u64::from(x));
                         let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
                         for _ in 0..settings.spp {
-                            let c = if let Some(t) = &tracer {
-                                t.sample([x, y], &mut rng).to_array()
-                            } else {
-                                let o = filter.offset([rng.next_f32(), rng.next_f32()]);
-                                let lens = [rng.next_f32(), rng.next_f32()];
-                                let (origin, dir) =
-                                    camera.ray(x as f32 + 0.5 + o[0], y as f32 + 0.5 + o[1], lens);
-                                preview.radiance(origin, dir, &mut rng, &mut tile_rays)
-                            };
+                            let c = estimator.sample([x, y], &mut rng, &mut scratch).to_array();
                             if is_valid(c) {
                                 for k in 0..3 {
                                     sum[k] += f64::from(c[k]);
                                 }
                             } else {
                                 dropped += 1;
+                            }
+                            for (p, c) in scratch.drain(..) {
+                                splats.splat(p[0] as f32 + 0.5, p[1] as f32 + 0.5, c.to_array());
                             }
                         }
                         local.push((x, y, sum, settings.spp, dropped));
@@ -132,7 +161,7 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
                     film.set_pixel(x, y, sum, n, dropped);
                 }
                 drop(film);
-                rays.fetch_add(tile_rays, Ordering::Relaxed);
+                rays.fetch_add(rays_cast() - rays_before, Ordering::Relaxed);
                 bar.inc(1);
                 true
             })
@@ -141,8 +170,9 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
             .all(|done| done)
     });
     bar.finish_and_clear();
-    let film = film.into_inner().expect("no thread panicked");
+    let mut film = film.into_inner().expect("no thread panicked");
     let samples = film.rendered_pixels() as u64 * u64::from(settings.spp);
+    film.add_splats(&splats, samples);
     Ok(Rendered {
         film,
         seconds: start.elapsed().as_secs_f64(),

@@ -1,3 +1,299 @@
 //! Cross-crate tests (convergence, agreement between integrators, scenes)
-//! live in `tests/`; this library holds their shared helpers.
+//! live in `tests/`; this library holds their shared helpers: scenes
+//! written to temporary files, repeated renders with per-pixel variances,
+//! and the statistical comparison of two integrators' images.
 #![deny(unsafe_code)]
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use aether_strategies::scene::Scene;
+use aether_strategies::spectrum::luminance;
+use integrators::render::{Settings, render};
+
+/// Loads a scene from Mitsuba XML text, written to a fresh temporary file
+/// (with `files`, name and contents, beside it).
+///
+/// # Panics
+/// If the files cannot be written or the scene does not load.
+#[must_use]
+pub fn scene_from(xml: &str, files: &[(&str, &str)]) -> Scene {
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("aether-tests-{}-{n}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    for (name, text) in files {
+        std::fs::write(dir.join(name), text).expect("a temporary file");
+    }
+    let path = dir.join("scene.xml");
+    std::fs::write(&path, xml).expect("a temporary file");
+    Scene::load(&path, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Per-pixel luminance estimates of an integrator from independent renders.
+#[derive(Clone, Debug)]
+pub struct Estimate {
+    /// The integrator.
+    pub integrator: String,
+    /// Independent renders.
+    pub renders: u32,
+    /// Mean luminance of each pixel over the renders.
+    pub mean: Vec<f64>,
+    /// Variance of that mean (the sample variance over renders, over their number).
+    pub variance: Vec<f64>,
+}
+
+impl Estimate {
+    /// Renders `scene` with `integrator` `renders` times, with seeds
+    /// 1, 2, …, at `spp` samples per pixel each.
+    ///
+    /// # Panics
+    /// If a render fails or drops a sample.
+    #[must_use]
+    pub fn of(scene: &mut Scene, integrator: &str, renders: u32, spp: u32) -> Estimate {
+        scene.integrator.name = integrator.to_string();
+        let n = scene.film.width as usize * scene.film.height as usize;
+        let (mut sum, mut sum2) = (vec![0.0; n], vec![0.0; n]);
+        for seed in 1..=u64::from(renders) {
+            let settings = Settings {
+                spp,
+                seed,
+                time_limit: None,
+                threads: None,
+                progress: false,
+            };
+            let r = render(scene, &settings, &AtomicBool::new(false))
+                .unwrap_or_else(|e| panic!("{integrator}: {e}"));
+            assert_eq!(r.film.dropped(), 0, "{integrator} dropped samples");
+            for (i, c) in r.film.image().iter().enumerate() {
+                let y = luminance(*c);
+                sum[i] += y;
+                sum2[i] += y * y;
+            }
+        }
+        let k = f64::from(renders);
+        let mean: Vec<f64> = sum.iter().map(|s| s / k).collect();
+        let variance = sum2
+            .iter()
+            .zip(&mean)
+            .map(|(s2, m)| ((s2 - k * m * m) / (k - 1.0)).max(0.0) / k)
+            .collect();
+        Estimate {
+            integrator: integrator.to_string(),
+            renders,
+            mean,
+            variance,
+        }
+    }
+
+    /// The mean over the image.
+    #[must_use]
+    pub fn image_mean(&self) -> f64 {
+        self.mean.iter().sum::<f64>() / self.mean.len() as f64
+    }
+
+    /// The standard error of [`image_mean`](Self::image_mean) (pixels independent).
+    #[must_use]
+    pub fn image_mean_error(&self) -> f64 {
+        self.variance.iter().sum::<f64>().sqrt() / self.mean.len() as f64
+    }
+}
+
+/// How two estimates of one image compare.
+#[derive(Clone, Debug)]
+pub struct Agreement {
+    /// (mean of a − mean of b) / mean of b.
+    pub relative_difference: f64,
+    /// Its standard error.
+    pub relative_error: f64,
+    /// Pixels whose difference exceeds the critical value of the test.
+    pub failures: usize,
+    /// Pixels tested (with a positive variance and not masked out).
+    pub tested: usize,
+    /// Largest failure rate consistent with the level: the level plus three
+    /// binomial standard deviations.
+    pub allowed: f64,
+}
+
+/// Two-sided 1 % critical values of Student's t for 1 to 15 degrees of freedom.
+const T_CRITICAL_1_PERCENT: [f64; 15] = [
+    63.657, 9.925, 5.841, 4.604, 4.032, 3.707, 3.499, 3.355, 3.250, 3.169, 3.106, 3.055, 3.012,
+    2.977, 2.947,
+];
+
+/// Compares `a` with `b`, over the pixels where `skip` is not true: their
+/// means, and each pixel at level 1 %: the difference over
+/// its standard error follows Student's t with at least renders − 1 degrees
+/// of freedom if both converge to the same image, so at most 1 % of pixels
+/// (plus binomial noise) may exceed the critical value. Pixels where `skip`
+/// is true are left out.
+///
+/// # Panics
+/// If the estimates differ in size or have fewer than 2 or more than 16 renders.
+#[must_use]
+pub fn agreement(a: &Estimate, b: &Estimate, skip: Option<&[bool]>) -> Agreement {
+    assert_eq!(a.mean.len(), b.mean.len());
+    let df = a.renders.min(b.renders) as usize - 1;
+    let critical = T_CRITICAL_1_PERCENT[df - 1];
+    let (mut failures, mut tested) = (0, 0);
+    let (mut ma, mut mb, mut var) = (0.0, 0.0, 0.0);
+    for i in 0..a.mean.len() {
+        if skip.is_some_and(|s| s[i]) {
+            continue;
+        }
+        let v = a.variance[i] + b.variance[i];
+        ma += a.mean[i];
+        mb += b.mean[i];
+        var += v;
+        if v <= 0.0 {
+            continue;
+        }
+        tested += 1;
+        if (a.mean[i] - b.mean[i]).abs() / v.sqrt() > critical {
+            failures += 1;
+        }
+    }
+    let error = var.sqrt() / mb;
+    let level = 0.01;
+    Agreement {
+        relative_difference: (ma - mb) / mb,
+        relative_error: error,
+        failures,
+        tested,
+        allowed: level + 3.0 * (level * (1.0 - level) / tested.max(1) as f64).sqrt(),
+    }
+}
+
+/// Asserts that `a` and `b` agree: image means within `tolerance`
+/// (relative) or, where the estimates are noisier than that, within four
+/// standard errors; and a per-pixel failure rate within [`Agreement::allowed`].
+///
+/// # Panics
+/// If they do not.
+pub fn assert_agree(
+    scene: &str,
+    a: &Estimate,
+    b: &Estimate,
+    skip: Option<&[bool]>,
+    tolerance: f64,
+) {
+    let r = agreement(a, b, skip);
+    let rate = r.failures as f64 / r.tested.max(1) as f64;
+    println!(
+        "{scene}: {} {:.5} ± {:.5}, {} {:.5} ± {:.5} (whole images)",
+        a.integrator,
+        a.image_mean(),
+        a.image_mean_error(),
+        b.integrator,
+        b.image_mean(),
+        b.image_mean_error()
+    );
+    println!(
+        "{scene}: {} vs {}: means differ by {:+.3} % ± {:.3} %, {} of {} pixels fail the 1 % test ({:.2} %, allowed {:.2} %)",
+        a.integrator,
+        b.integrator,
+        100.0 * r.relative_difference,
+        100.0 * r.relative_error,
+        r.failures,
+        r.tested,
+        100.0 * rate,
+        100.0 * r.allowed
+    );
+    assert!(r.tested > 0, "{scene}: no pixel to test");
+    assert!(
+        r.relative_difference.abs() < tolerance.max(4.0 * r.relative_error),
+        "{scene}: {} and {} means differ by {:.3} % ± {:.3} %",
+        a.integrator,
+        b.integrator,
+        100.0 * r.relative_difference,
+        100.0 * r.relative_error
+    );
+    assert!(
+        rate <= r.allowed,
+        "{scene}: {} and {} differ in {} of {} pixels",
+        a.integrator,
+        b.integrator,
+        r.failures,
+        r.tested
+    );
+}
+
+/// The pixels where either estimate exceeds `threshold`: in tests, the
+/// pixels that see a light, whose edge noise would need far more samples
+/// than a test can afford to pin the image mean down to 0.1 %.
+#[must_use]
+pub fn brighter_than(threshold: f64, estimates: &[&Estimate]) -> Vec<bool> {
+    (0..estimates[0].mean.len())
+        .map(|i| estimates.iter().any(|e| e.mean[i] > threshold))
+        .collect()
+}
+
+/// The lines of the function `name` (its signature through its closing
+/// brace) in `source`, after the first occurrence of `after`: the
+/// non-blank, non-comment lines of its body.
+///
+/// # Panics
+/// If `after` or the function is not found.
+#[must_use]
+pub fn function_lines(source: &str, after: &str, name: &str) -> usize {
+    let start = source
+        .find(after)
+        .unwrap_or_else(|| panic!("{after} not found"));
+    let rest = &source[start..];
+    let at = rest
+        .find(&format!("fn {name}"))
+        .unwrap_or_else(|| panic!("fn {name} not found after {after}"));
+    // The body: the lines after the one that opens it, up to its closing
+    // brace (the signature is boilerplate, not sampling code).
+    let mut depth = 0i32;
+    let mut opened = false;
+    let mut count = 0;
+    for line in rest[at..].lines() {
+        let code = line.trim();
+        let counted = opened && !code.is_empty() && !code.starts_with("//");
+        for c in code.chars() {
+            match c {
+                '{' => {
+                    depth += 1;
+                    opened = true;
+                }
+                '}' => depth -= 1,
+                _ => {}
+            }
+        }
+        if opened && depth == 0 {
+            break;
+        }
+        if counted {
+            count += 1;
+        }
+    }
+    count
+}
+
+/// The non-blank, non-comment lines of the block that opens on the line
+/// holding `marker`, that line included, through its closing brace.
+///
+/// # Panics
+/// If `marker` is not found.
+#[must_use]
+pub fn block_lines(source: &str, marker: &str) -> usize {
+    let start = source
+        .find(marker)
+        .unwrap_or_else(|| panic!("{marker} not found"));
+    let line_start = source[..start].rfind('\n').map_or(0, |i| i + 1);
+    let mut depth = 0i32;
+    let mut count = 0;
+    for line in source[line_start..].lines() {
+        let code = line.trim();
+        if !code.is_empty() && !code.starts_with("//") {
+            count += 1;
+        }
+        depth += code.matches(['{', '(']).count() as i32;
+        depth -= code.matches(['}', ')']).count() as i32;
+        if depth <= 0 {
+            break;
+        }
+    }
+    count
+}

@@ -120,6 +120,31 @@ impl<'s> Bsdf<'s> {
         )
     }
 
+    /// A rough measure of how much of the light arriving here the surface
+    /// scatters: the largest channel of its reflectance (one for glass, at
+    /// least the coat's share for plastic). Russian roulette goes on with at
+    /// most this probability, so that dark surfaces end paths early; it
+    /// depends on this vertex alone, so the roulette stays part of a
+    /// memoryless density.
+    #[must_use]
+    pub fn albedo(&self) -> f32 {
+        let max = |c: [f32; 3]| c[0].max(c[1]).max(c[2]);
+        match self.material {
+            Material::Diffuse { reflectance } => max(reflectance.eval(self.uv.to_array())),
+            Material::Conductor {
+                specular_reflectance,
+                ..
+            } => max(*specular_reflectance),
+            Material::Plastic {
+                diffuse_reflectance,
+                specular_reflectance,
+                ..
+            } => max(diffuse_reflectance.eval(self.uv.to_array()))
+                .max(0.1 * max(*specular_reflectance)),
+            Material::Dielectric { .. } | Material::BumpMap { .. } | Material::TwoSided(_) => 1.0,
+        }
+    }
+
     /// f(ω_light → ω_camera) for unit world directions pointing away from
     /// the surface, with the shading-normal correction. Dirac lobes give
     /// their coefficient (per unit Dirac mass in the solid angle of

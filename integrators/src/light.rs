@@ -1,0 +1,112 @@
+//! Light tracing: paths from the lights, each vertex connected to the
+//! camera and splatted where it lands on the film.
+
+use aether_core::{Pcg32, RandomSequence};
+use aether_strategies::bsdf::{Bsdf, Transport};
+use aether_strategies::camera::Camera;
+use aether_strategies::integrand::Integrand;
+use aether_strategies::lights::Lights;
+use aether_strategies::scattering::{BsdfSampling, Roulette};
+use aether_strategies::scene::Scene;
+use aether_strategies::vertex::SceneVertex;
+use glam::{DVec3, Vec3};
+
+use crate::estimator::{Estimator, Splats};
+
+/// A light tracer. Lights seen directly are the one kind of path a light
+/// path cannot reach through a pinhole, so the camera ray of each sample
+/// finds them; every longer path comes from the light, and each path has one
+/// technique, so no MIS is needed.
+///
+/// ```no_run
+/// # fn f(scene: &aether_strategies::scene::Scene) -> Result<(), String> {
+/// use integrators::estimator::Estimator;
+/// let tracer = integrators::light::LightTracer::new(scene)?;
+/// let mut splats = Vec::new();
+/// let seen = tracer.sample([3, 4], &mut aether_core::Pcg32::new(0, 0), &mut splats);
+/// # Ok(()) }
+/// ```
+#[derive(Debug)]
+pub struct LightTracer<'s> {
+    scene: &'s Scene,
+    camera: Camera,
+    lights: Option<Lights<'s>>,
+    max_vertices: usize,
+    roulette: Roulette,
+}
+
+impl<'s> LightTracer<'s> {
+    /// The light tracer of `scene`, with its integrator's maximum depth and
+    /// Russian-roulette depth.
+    ///
+    /// # Errors
+    /// If the camera cannot be built (an unknown pixel filter).
+    pub fn new(scene: &'s Scene) -> Result<Self, String> {
+        let settings = &scene.integrator;
+        Ok(LightTracer {
+            scene,
+            camera: Camera::new(scene)?,
+            lights: Lights::new(scene),
+            max_vertices: usize::try_from(settings.max_depth)
+                .map_or(usize::MAX, |d| d.saturating_add(1)),
+            roulette: Roulette {
+                start: usize::try_from(settings.rr_depth)
+                    .unwrap_or(usize::MAX)
+                    .saturating_add(1),
+                probability: 0.95,
+            },
+        })
+    }
+}
+
+impl Estimator for LightTracer<'_> {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3 {
+        let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
+            return Vec3::ZERO;
+        };
+        let f = Integrand::new(self.scene, &self.camera, lights);
+        let (emit, leave) = (lights.position(), lights.direction());
+        let gather = BsdfSampling::new(self.scene, Transport::Importance, self.roulette);
+        let (lens, look) = (
+            self.camera.position(),
+            self.camera.direction(self.scene, pixel),
+        );
+        let mut eye = RandomSequence::new();
+        eye.append(&lens).append(&look).sample(rng);
+        let seen = if eye.is_complete() {
+            estimate(f.evaluate(pixel, eye.vertices(), &[]), &eye)
+        } else {
+            DVec3::ZERO
+        };
+        let mut light = RandomSequence::new();
+        light.append(&emit).append(&leave).sample(rng);
+        while light.is_complete() && light.len() < self.max_vertices && !eye.is_empty() {
+            let last = &light.vertices()[light.len() - 1];
+            if Bsdf::at(self.scene, last).is_some_and(|b| !b.is_dirac()) {
+                let path = eye.slice(0..1).concat(&light.reversed());
+                let v = path.vertices();
+                let through = f.throughput(v, &[0]);
+                if let (Some(d), true) = (v[0].direction_to(&v[1]), through != DVec3::ZERO) {
+                    let raster = self.camera.raster(&v[0], d).unwrap_or(glam::Vec2::NAN);
+                    for j in self.camera.pixels_around(raster) {
+                        let w = through * self.camera.importance(j, &v[0], d);
+                        splats.push((j, estimate(w, &path).as_vec3()));
+                    }
+                }
+            }
+            light.append(&gather).sample(rng);
+        }
+        seen.as_vec3()
+    }
+}
+
+/// f / p, or nothing where the density vanishes or the ratio is not finite.
+fn estimate(f: DVec3, path: &RandomSequence<'_, SceneVertex>) -> DVec3 {
+    let p = path.pdf().value();
+    let e = f / p;
+    if p > 0.0 && e.is_finite() {
+        e
+    } else {
+        DVec3::ZERO
+    }
+}
