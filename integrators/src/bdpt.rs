@@ -23,7 +23,7 @@ use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
-use crate::estimator::{Estimator, Splats};
+use crate::estimator::{Estimator, Splats, path_limits};
 use crate::techniques::TechniqueImages;
 
 type Path<'a> = RandomSequence<'a, SceneVertex>;
@@ -80,20 +80,14 @@ impl<'s> Bdpt<'s> {
     /// # Errors
     /// If the camera cannot be built (an unknown pixel filter).
     pub fn new(scene: &'s Scene) -> Result<Self, String> {
-        let settings = &scene.integrator;
+        let (max_vertices, roulette) = path_limits(scene);
         Ok(Bdpt {
             scene,
             camera: Camera::new(scene)?,
             lights: Lights::new(scene),
             portal: None,
-            max_vertices: usize::try_from(settings.max_depth)
-                .map_or(usize::MAX, |d| d.saturating_add(1)),
-            roulette: Roulette {
-                start: usize::try_from(settings.rr_depth)
-                    .unwrap_or(usize::MAX)
-                    .saturating_add(1),
-                probability: 0.95,
-            },
+            max_vertices,
+            roulette,
             heuristic: Heuristic::POWER,
             images: None,
         })

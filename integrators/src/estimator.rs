@@ -2,6 +2,8 @@
 //! the contributions its light paths make to other pixels.
 
 use aether_core::Pcg32;
+use aether_strategies::scattering::Roulette;
+use aether_strategies::scene::Scene;
 use glam::Vec3;
 
 /// Contributions of light paths to pixels of the film, in the units of a
@@ -14,4 +16,22 @@ pub trait Estimator: Sync {
     /// One sample of pixel `pixel`: the estimate carried by its camera path,
     /// with light-path contributions to any pixel pushed onto `splats`.
     fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3;
+}
+
+/// The longest paths, in vertices (`usize::MAX` for none), and the Russian
+/// roulette that the scene's integrator settings ask for: Mitsuba's
+/// `maxDepth` counts edges and `rrDepth` the vertices sampled without
+/// roulette after the camera or light vertex.
+#[must_use]
+pub fn path_limits(scene: &Scene) -> (usize, Roulette) {
+    let settings = &scene.integrator;
+    let max_vertices =
+        usize::try_from(settings.max_depth).map_or(usize::MAX, |d| d.saturating_add(1));
+    let roulette = Roulette {
+        start: usize::try_from(settings.rr_depth)
+            .unwrap_or(usize::MAX)
+            .saturating_add(1),
+        probability: 0.95,
+    };
+    (max_vertices, roulette)
 }

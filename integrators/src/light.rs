@@ -11,7 +11,7 @@ use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 
-use crate::estimator::{Estimator, Splats};
+use crate::estimator::{Estimator, Splats, path_limits};
 
 /// A light tracer. Lights seen directly are the one kind of path a light
 /// path cannot reach through a pinhole, so the camera ray of each sample
@@ -42,19 +42,13 @@ impl<'s> LightTracer<'s> {
     /// # Errors
     /// If the camera cannot be built (an unknown pixel filter).
     pub fn new(scene: &'s Scene) -> Result<Self, String> {
-        let settings = &scene.integrator;
+        let (max_vertices, roulette) = path_limits(scene);
         Ok(LightTracer {
             scene,
             camera: Camera::new(scene)?,
             lights: Lights::new(scene),
-            max_vertices: usize::try_from(settings.max_depth)
-                .map_or(usize::MAX, |d| d.saturating_add(1)),
-            roulette: Roulette {
-                start: usize::try_from(settings.rr_depth)
-                    .unwrap_or(usize::MAX)
-                    .saturating_add(1),
-                probability: 0.95,
-            },
+            max_vertices,
+            roulette,
         })
     }
 }

@@ -13,7 +13,7 @@ use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
-use crate::estimator::{Estimator, Splats};
+use crate::estimator::{Estimator, Splats, path_limits};
 
 /// A unidirectional path tracer with next-event estimation.
 #[derive(Debug)]
@@ -33,18 +33,13 @@ impl<'s> PathTracer<'s> {
     /// # Errors
     /// If the camera cannot be built (an unknown pixel filter).
     pub fn new(scene: &'s Scene) -> Result<Self, String> {
-        let settings = &scene.integrator;
+        let (max_vertices, roulette) = path_limits(scene);
         Ok(PathTracer {
             scene,
             camera: Camera::new(scene)?,
             lights: Lights::new(scene),
-            max_depth: usize::try_from(settings.max_depth).unwrap_or(usize::MAX),
-            roulette: Roulette {
-                start: usize::try_from(settings.rr_depth)
-                    .unwrap_or(usize::MAX)
-                    .saturating_add(1),
-                probability: 0.95,
-            },
+            max_depth: max_vertices.saturating_sub(1),
+            roulette,
             heuristic: Heuristic::POWER,
         })
     }
