@@ -56,7 +56,7 @@ pub use choice::{Mixture, RussianRoulette, Select};
 pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
-pub use mis::{Heuristic, Split, Technique, Weights, combine, weight_of, weight_of_split};
+pub use mis::{Heuristic, Split, Weights, combine, weight_of_split};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use strategy::{

@@ -291,122 +291,6 @@ fn combine_with<V: Vertex>(
     weights
 }
 
-/// One way of sampling a path: its steps in path order, each a strategy
-/// and whether it runs reversed (from the light end).
-pub type Technique<'s, V> = SmallVec<[(StrategyRef<'s, V>, bool); 12]>;
-
-/// The MIS weight of `path`, sampled by `techniques[own]`, against every
-/// technique in `techniques`.
-///
-/// Unlike [`combine`], which weighs every candidate of one sample, this
-/// weighs one path, and builds no candidate sequences: each technique is a
-/// list of steps. Consecutive techniques share most steps (in BDPT they
-/// differ where the camera and light subpaths meet), so after the first,
-/// each density follows from the previous one by dividing out the steps it
-/// lost and multiplying in those it gained; a factor shared by several
-/// techniques is evaluated once. Order techniques so that neighbours differ
-/// little, and the density evaluations are linear in the path's length.
-/// Techniques whose vertex count differs from the path's contribute zero.
-///
-/// ```
-/// use aether_core::{DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, Technique, weight_of};
-/// use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene};
-///
-/// let scene = TestScene::open_box();
-/// let (camera, look, bounce, light) = (CameraPoint::default(), LookDown::new(&scene), Bounce::new(&scene), LightSample::new(&scene));
-/// let mut path = RandomSequence::new();
-/// path.append(&camera).append(&look).append(&light);
-/// path.sample(&mut Pcg32::new(3, 0));
-/// let by_light: Technique<_> = [&camera as &dyn DynStrategy<_>, &look, &light]
-///     .into_iter()
-///     .map(|s| (StrategyRef::One(s), false))
-///     .collect();
-/// let by_bsdf: Technique<_> = [&camera as &dyn DynStrategy<_>, &look, &bounce]
-///     .into_iter()
-///     .map(|s| (StrategyRef::One(s), false))
-///     .collect();
-/// let both = [by_light, by_bsdf];
-/// let (w, other) = (weight_of(&path, &both, 0, Heuristic::POWER), weight_of(&path, &both, 1, Heuristic::POWER));
-/// assert!((0.0..=1.0).contains(&w) && (w + other - 1.0).abs() < 1e-12); // a partition of unity
-/// ```
-#[must_use]
-pub fn weight_of<'s, V: Vertex>(
-    path: &RandomSequence<'_, V>,
-    techniques: &[Technique<'s, V>],
-    own: usize,
-    heuristic: Heuristic,
-) -> f64 {
-    SCRATCH.with(|s| match s.try_borrow_mut() {
-        Ok(mut scratch) => weight_with(path, techniques, own, heuristic, &mut scratch),
-        Err(_) => weight_with(path, techniques, own, heuristic, &mut Scratch::default()),
-    })
-}
-
-fn spans_of<'s, V>(technique: &Technique<'s, V>) -> SmallVec<[Span<'s, V>; 12]> {
-    let mut start = 0;
-    technique
-        .iter()
-        .map(|&(strategy, reversed)| {
-            let span = Span::new(start, strategy.arity(), Some(strategy), reversed, 0);
-            start += span.arity;
-            span
-        })
-        .collect()
-}
-
-fn weight_with<'s, V: Vertex>(
-    path: &RandomSequence<'_, V>,
-    techniques: &[Technique<'s, V>],
-    own: usize,
-    heuristic: Heuristic,
-    scratch: &mut Scratch,
-) -> f64 {
-    if !path.is_complete() {
-        return 0.0;
-    }
-    let n = path.len();
-    let Scratch {
-        cache, densities, ..
-    } = scratch;
-    cache.begin();
-    densities.clear();
-    let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
-    let mut current: SmallVec<[Density; 16]> = SmallVec::from_elem(Density::zero(Measure::Area), n);
-    let mut previous: Option<(SmallVec<[Span<'s, V>; 12]>, PathDensity)> = None;
-    for technique in techniques {
-        let spans = spans_of(technique);
-        if spans.last().is_none_or(|s| s.start + s.arity != n) {
-            densities.push(zero);
-            previous = None;
-            continue;
-        }
-        let p = match &previous {
-            Some((before, p)) => {
-                // Both lists are sorted by start: a merge finds the steps
-                // that left and those that entered.
-                let mut p = *p;
-                for s in before.iter().filter(|s| !contains(&spans, s)) {
-                    p = p.divided_by(current[s.start]);
-                }
-                for s in spans.iter().filter(|s| !contains(before, s)) {
-                    let f = path.factor(s, Some(cache));
-                    current[s.start] = f;
-                    p = p.times(f);
-                }
-                p
-            }
-            None => spans.iter().fold(PathDensity::ONE, |p, s| {
-                let f = path.factor(s, Some(cache));
-                current[s.start] = f;
-                p.times(f)
-            }),
-        };
-        densities.push(p);
-        previous = Some((spans, p));
-    }
-    heuristic.weight(densities, own)
-}
-
 /// One technique of a path sampled from both ends: the first `camera`
 /// vertices by camera-side strategies, then the `middle` steps (each
 /// forward or reversed: direct light sampling, a portal segment), then
@@ -489,13 +373,6 @@ pub fn weight_of_split<'s, V: Vertex>(
         })
         .collect();
     (heuristic.weight(&densities, own), densities[own])
-}
-
-/// True if `spans` (sorted by start) holds `s`.
-fn contains<V>(spans: &[Span<'_, V>], s: &Span<'_, V>) -> bool {
-    spans
-        .binary_search_by_key(&s.start, |x| x.start)
-        .is_ok_and(|i| spans[i] == *s)
 }
 
 #[cfg(test)]

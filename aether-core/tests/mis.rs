@@ -332,3 +332,52 @@ fn a_stopped_sequence_samples_nothing_more() {
         checked += 1;
     }
 }
+
+fn one<'a>(
+    s: &'a dyn aether_core::DynStrategy<TestVertex>,
+) -> aether_core::StrategyRef<'a, TestVertex> {
+    aether_core::StrategyRef::One(s)
+}
+
+/// `weight_of_split`, which builds no candidate sequences, gives the
+/// weights and own densities that `combine` gives for the same BDPT
+/// candidates.
+#[test]
+fn weights_of_splits_match_combine_on_bdpt_candidates() {
+    use aether_core::{Split, weight_of_split};
+    let scene = TestScene::open_box();
+    let f = aether_core::testing::BidirectionalFixture::new(&scene);
+    let camera = [one(&f.camera), one(&f.look), one(&f.bounce)];
+    let light = [one(&f.light), one(&f.bounce)];
+    let mut rng = Pcg32::new(21, 0);
+    let mut out = smallvec::SmallVec::new();
+    let mut compared = 0;
+    for length in 2..7 {
+        for _ in 0..200 {
+            f.sample_candidates(length, &mut rng, &mut out);
+            // Each candidate's split: its leading camera-side vertices.
+            let splits: Vec<Split<'_, TestVertex>> = out
+                .iter()
+                .map(|c| Split {
+                    camera: (0..c.len()).take_while(|&i| !c.is_reversed(i)).count(),
+                    middle: smallvec::SmallVec::new(),
+                })
+                .collect();
+            let expected = combine(&out, Heuristic::POWER);
+            for (i, path) in out.iter().enumerate() {
+                let (w, p) = weight_of_split(path, &camera, &light, &splits, i, Heuristic::POWER);
+                let own = path.pdf();
+                assert!(
+                    (w - expected[i]).abs() < 1e-9,
+                    "{length}: {w} vs {}",
+                    expected[i]
+                );
+                let same =
+                    own.is_zero() && p.is_zero() || (p.value() / own.value() - 1.0).abs() < 1e-9;
+                assert!(same, "{p} vs {own}");
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 1000, "{compared}");
+}
