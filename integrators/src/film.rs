@@ -116,13 +116,14 @@ impl SplatBuffer {
         }
     }
 
-    /// Adds `c` at film position (x, y) in pixels; positions off the film are ignored.
-    pub fn splat(&self, x: f32, y: f32, c: [f32; 3]) {
+    /// Adds `c` to pixel `pixel` (x, y); pixels off the film are ignored.
+    pub fn splat(&self, pixel: [u32; 2], c: [f32; 3]) {
         if !is_valid(c) {
             self.dropped.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        if !(x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32) {
+        let [x, y] = pixel;
+        if x >= self.width || y >= self.height {
             return;
         }
         let i = 3 * (y as usize * self.width as usize + x as usize);
@@ -168,12 +169,13 @@ mod tests {
             for _ in 0..4 {
                 s.spawn(|| {
                     for _ in 0..1000 {
-                        b.splat(1.5, 2.5, [1.0, 2.0, 0.5]);
+                        b.splat([1, 2], [1.0, 2.0, 0.5]);
                     }
                 });
             }
         });
-        b.splat(0.0, 0.0, [f32::NAN, 0.0, 0.0]);
+        b.splat([0, 0], [f32::NAN, 0.0, 0.0]);
+        b.splat([4, 0], [1.0; 3]);
         let img = b.image(1.0);
         assert_eq!(img[2 * 4 + 1], [4000.0, 8000.0, 2000.0]);
         assert_eq!(b.dropped(), 1);

@@ -148,7 +148,7 @@ pub fn render_with(
                                 dropped += 1;
                             }
                             for (p, c) in scratch.drain(..) {
-                                splats.splat(p[0] as f32 + 0.5, p[1] as f32 + 0.5, c.to_array());
+                                splats.splat(p, c.to_array());
                             }
                         }
                         local.push((x, y, sum, settings.spp, dropped));

@@ -67,10 +67,9 @@ impl TechniqueImages {
         } else {
             f64::from(self.width) * f64::from(self.height)
         };
-        let (x, y) = (pixel[0] as f32 + 0.5, pixel[1] as f32 + 0.5);
         let i = Self::index(s, t);
-        self.weighted[i].splat(x, y, (weighted * scale).as_vec3().to_array());
-        self.unweighted[i].splat(x, y, (unweighted * scale).as_vec3().to_array());
+        self.weighted[i].splat(pixel, (weighted * scale).as_vec3().to_array());
+        self.unweighted[i].splat(pixel, (unweighted * scale).as_vec3().to_array());
     }
 
     /// The weighted and unweighted image of (s, t) after `samples` samples
