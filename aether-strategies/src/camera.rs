@@ -214,6 +214,19 @@ impl Camera {
         (y0..=y1).flat_map(move |y| (x0..=x1).map(move |x| [x as u32, y as u32]))
     }
 
+    /// The pixels whose filter covers the film position a ray from `lens`
+    /// in world direction `toward` meets: those a light path connected to
+    /// the camera along that ray contributes to.
+    pub fn pixels_toward(
+        &self,
+        lens: &SceneVertex,
+        toward: Vec3,
+    ) -> impl Iterator<Item = [u32; 2]> {
+        self.raster(lens, toward)
+            .into_iter()
+            .flat_map(|r| self.pixels_around(r))
+    }
+
     /// The importance W(x₀ → x₁) of pixel `pixel` for a ray leaving camera
     /// vertex `lens` in direction `toward`: the density of the camera's own
     /// sampling of that ray (position times direction), over |cos| at the

@@ -252,11 +252,9 @@ impl<'s> Bdpt<'s> {
         if !matches!(own, Split::Bdpt(1) | Split::Portal(1)) {
             return estimate(pixel, &kit.look).unwrap_or(DVec3::ZERO);
         }
-        if let Some(r) = self.camera.raster(&v[0], d) {
-            for j in self.camera.pixels_around(r) {
-                if let Some(e) = estimate(j, &self.camera.direction(self.scene, j)) {
-                    splats.push((j, e.as_vec3()));
-                }
+        for j in self.camera.pixels_toward(&v[0], d) {
+            if let Some(e) = estimate(j, &self.camera.direction(self.scene, j)) {
+                splats.push((j, e.as_vec3()));
             }
         }
         DVec3::ZERO

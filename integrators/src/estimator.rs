@@ -1,10 +1,11 @@
 //! What the render loop asks of an integrator: one sample of a pixel, with
 //! the contributions its light paths make to other pixels.
 
-use aether_core::Pcg32;
+use aether_core::{Pcg32, RandomSequence};
 use aether_strategies::scattering::Roulette;
 use aether_strategies::scene::Scene;
-use glam::Vec3;
+use aether_strategies::vertex::SceneVertex;
+use glam::{DVec3, Vec3};
 
 /// Contributions of light paths to pixels of the film, in the units of a
 /// pixel's camera-path estimate: the render loop divides their sum by the
@@ -34,4 +35,18 @@ pub fn path_limits(scene: &Scene) -> (usize, Roulette) {
         probability: 0.95,
     };
     (max_vertices, roulette)
+}
+
+/// f / p for a path with integrand value `f`, or nothing where the path's
+/// density vanishes (a grazing vertex, whose contribution vanishes with it)
+/// or the ratio is not finite.
+#[must_use]
+pub fn estimate(f: DVec3, path: &RandomSequence<'_, SceneVertex>) -> DVec3 {
+    let p = path.pdf().value();
+    let e = f / p;
+    if p > 0.0 && e.is_finite() {
+        e
+    } else {
+        DVec3::ZERO
+    }
 }

@@ -8,10 +8,9 @@ use aether_strategies::integrand::Integrand;
 use aether_strategies::lights::Lights;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
-use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 
-use crate::estimator::{Estimator, Splats, path_limits};
+use crate::estimator::{Estimator, Splats, estimate, path_limits};
 
 /// A light tracer. Lights seen directly are the one kind of path a light
 /// path cannot reach through a pinhole, so the camera ray of each sample
@@ -79,28 +78,16 @@ impl Estimator for LightTracer<'_> {
             if Bsdf::at(self.scene, last).is_some_and(|b| !b.is_dirac()) {
                 let path = eye.slice(0..1).concat(&light.reversed());
                 let v = path.vertices();
-                let through = f.throughput(v, &[0]);
+                let through = estimate(f.throughput(v, &[0]), &path);
                 if let (Some(d), true) = (v[0].direction_to(&v[1]), through != DVec3::ZERO) {
-                    let raster = self.camera.raster(&v[0], d).unwrap_or(glam::Vec2::NAN);
-                    for j in self.camera.pixels_around(raster) {
+                    for j in self.camera.pixels_toward(&v[0], d) {
                         let w = through * self.camera.importance(j, &v[0], d);
-                        splats.push((j, estimate(w, &path).as_vec3()));
+                        splats.push((j, w.as_vec3()));
                     }
                 }
             }
             light.append(&gather).sample(rng);
         }
         seen.as_vec3()
-    }
-}
-
-/// f / p, or nothing where the density vanishes or the ratio is not finite.
-fn estimate(f: DVec3, path: &RandomSequence<'_, SceneVertex>) -> DVec3 {
-    let p = path.pdf().value();
-    let e = f / p;
-    if p > 0.0 && e.is_finite() {
-        e
-    } else {
-        DVec3::ZERO
     }
 }

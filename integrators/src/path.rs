@@ -13,7 +13,7 @@ use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
-use crate::estimator::{Estimator, Splats, path_limits};
+use crate::estimator::{Estimator, Splats, estimate, path_limits};
 
 /// A unidirectional path tracer with next-event estimation.
 #[derive(Debug)]
@@ -91,7 +91,7 @@ impl Estimator for PathTracer<'_> {
                 } else {
                     weight(&path, &steps, &direct, self.heuristic)
                 };
-                radiance += estimate(emitted * f64::from(w), &path);
+                radiance += estimate(emitted * f64::from(w), &path).as_vec3();
             }
             if k >= self.max_depth {
                 break;
@@ -103,7 +103,7 @@ impl Estimator for PathTracer<'_> {
                 let lit = f.evaluate(pixel, to_light.vertices(), &[k]);
                 if lit != DVec3::ZERO {
                     let w = weight(&to_light, &steps, &bsdf, self.heuristic);
-                    radiance += estimate(lit * f64::from(w), &to_light);
+                    radiance += estimate(lit * f64::from(w), &to_light).as_vec3();
                 }
             }
             path.append(&bsdf);
@@ -131,17 +131,5 @@ fn weight<'a>(
     match sampled.with_strategies(&alternative) {
         Some(alt) => combine(&[sampled.clone(), alt], heuristic)[0] as f32,
         None => 1.0,
-    }
-}
-
-/// f / p, or nothing where the path's density vanishes (a grazing vertex,
-/// whose contribution vanishes with it).
-fn estimate(f: DVec3, path: &RandomSequence<'_, SceneVertex>) -> Vec3 {
-    let p = path.pdf().value();
-    let e = f / p;
-    if p > 0.0 && e.is_finite() {
-        e.as_vec3()
-    } else {
-        Vec3::ZERO
     }
 }
