@@ -303,13 +303,25 @@ pub struct Split<'s, V> {
     pub middle: SmallVec<[(StrategyRef<'s, V>, bool); 2]>,
 }
 
+impl<'s, V> Split<'s, V> {
+    /// `camera` vertices from the camera, then the steps `middle`.
+    #[must_use]
+    pub fn new(camera: usize, middle: &[(StrategyRef<'s, V>, bool)]) -> Self {
+        Split {
+            camera,
+            middle: middle.iter().copied().collect(),
+        }
+    }
+}
+
 /// The MIS weight of `path`, sampled by `splits[own]`, against every
 /// technique in `splits`, and the density of `path` under its own
 /// technique.
 ///
 /// `camera[i]` samples the vertex at position i of a camera subpath and
 /// `light[i]` the vertex i steps from the light end of a light subpath; the
-/// last entry of each repeats (BSDF sampling from there on). Each vertex's
+/// last entry of each repeats (BSDF sampling from there on); an empty list
+/// samples nothing (a path tracer has no light-side strategies). Each vertex's
 /// camera-side and light-side densities are evaluated at most once, and
 /// each technique's density is a prefix product times its middle steps
 /// times a suffix product: time linear in the length of the path.
@@ -328,7 +340,7 @@ pub fn weight_of_split<'s, V: Vertex>(
 ) -> (f64, PathDensity) {
     let n = path.len();
     let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
-    if !path.is_complete() || camera.is_empty() || light.is_empty() || own >= splits.len() {
+    if !path.is_complete() || own >= splits.len() {
         return (0.0, zero);
     }
     let ends = |s: &Split<'s, V>| {
@@ -341,18 +353,23 @@ pub fn weight_of_split<'s, V: Vertex>(
         reach = reach.max(a.min(n));
         from = from.min(b);
     }
-    let step = |list: &[StrategyRef<'s, V>], i: usize| list[i.min(list.len() - 1)];
+    let step = |list: &[StrategyRef<'s, V>], i: usize| {
+        list.get(i.min(list.len().saturating_sub(1))).copied()
+    };
+    // A side with no strategies cannot sample its vertices: density zero.
+    let factor = |step: Option<StrategyRef<'s, V>>, i: usize, reversed: bool| match step {
+        Some(s) => path.factor(&Span::new(i, 1, Some(s), reversed, 0), None),
+        None => Density::zero(Measure::Area),
+    };
     // prefix[i]: vertices 0..i from the camera; suffix[i]: i..n from the light.
     let mut prefix: SmallVec<[PathDensity; 16]> = SmallVec::with_capacity(reach + 1);
     prefix.push(PathDensity::ONE);
     for i in 0..reach {
-        let span = Span::new(i, 1, Some(step(camera, i)), false, 0);
-        prefix.push(prefix[i].times(path.factor(&span, None)));
+        prefix.push(prefix[i].times(factor(step(camera, i), i, false)));
     }
     let mut suffix: SmallVec<[PathDensity; 16]> = SmallVec::from_elem(PathDensity::ONE, n + 1);
     for i in (from..n).rev() {
-        let span = Span::new(i, 1, Some(step(light, n - 1 - i)), true, 0);
-        suffix[i] = suffix[i + 1].times(path.factor(&span, None));
+        suffix[i] = suffix[i + 1].times(factor(step(light, n - 1 - i), i, true));
     }
     let densities: SmallVec<[PathDensity; 16]> = splits
         .iter()

@@ -2,7 +2,9 @@
 //! roulette, direct light sampling at every vertex, and MIS between the two
 //! ways each light vertex could have been sampled.
 
-use aether_core::{Heuristic, Pcg32, RandomSequence, StepKind, StrategyRef, combine};
+use aether_core::{
+    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StepKind, StrategyRef, weight_of_split,
+};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -11,7 +13,6 @@ use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
-use smallvec::SmallVec;
 
 use crate::estimator::{Estimator, Splats, estimate, path_limits};
 
@@ -69,11 +70,7 @@ impl Estimator for PathTracer<'_> {
         let bsdf = BsdfSampling::new(self.scene, Transport::Radiance, self.roulette);
         let direct = lights.direct();
         let f = Integrand::new(self.scene, &self.camera, lights);
-        let mut steps: SmallVec<[(StrategyRef<'_, SceneVertex>, bool); 16]> =
-            SmallVec::from_slice(&[
-                (StrategyRef::One(&lens), false),
-                (StrategyRef::One(&look), false),
-            ]);
+        let camera = [&lens as &dyn DynStrategy<_>, &look, &bsdf].map(StrategyRef::One);
         let mut path = RandomSequence::new();
         path.append(&lens).append(&look);
         if path.sample(rng) != StepKind::Vertex {
@@ -89,21 +86,20 @@ impl Estimator for PathTracer<'_> {
                 let w = if k == 1 {
                     1.0
                 } else {
-                    weight(&path, &steps, &direct, self.heuristic)
+                    weight(&path, &camera, &direct, 0, self.heuristic)
                 };
-                radiance += estimate(emitted * f64::from(w), &path).as_vec3();
+                radiance += estimate(emitted * w, &path).as_vec3();
             }
             if k >= self.max_depth {
                 break;
             }
             let mut to_light = path.clone();
             to_light.append(&direct);
-            steps.push((StrategyRef::One(&bsdf), false));
             if to_light.sample(rng) == StepKind::Vertex {
                 let lit = f.evaluate(pixel, to_light.vertices(), &[k]);
                 if lit != DVec3::ZERO {
-                    let w = weight(&to_light, &steps, &bsdf, self.heuristic);
-                    radiance += estimate(lit * f64::from(w), &to_light).as_vec3();
+                    let w = weight(&to_light, &camera, &direct, 1, self.heuristic);
+                    radiance += estimate(lit * w, &to_light).as_vec3();
                 }
             }
             path.append(&bsdf);
@@ -115,21 +111,18 @@ impl Estimator for PathTracer<'_> {
     }
 }
 
-type Steps<'a> = [(StrategyRef<'a, SceneVertex>, bool)];
-
-/// The MIS weight of `sampled` (made by `steps`) against the same vertices
-/// with the last one taken by `other`.
-fn weight<'a>(
-    sampled: &RandomSequence<'a, SceneVertex>,
-    steps: &Steps<'a>,
-    other: &'a dyn aether_core::DynStrategy<SceneVertex>,
+/// The MIS weight of `path` as made by technique `own` of the two a path
+/// tracer has for its last vertex: 0, BSDF sampling like the vertices
+/// before it; 1, direct light sampling.
+fn weight(
+    path: &RandomSequence<'_, SceneVertex>,
+    camera: &[StrategyRef<'_, SceneVertex>],
+    direct: &dyn DynStrategy<SceneVertex>,
+    own: usize,
     heuristic: Heuristic,
-) -> f32 {
-    let mut alternative: SmallVec<[_; 16]> = SmallVec::from_slice(steps);
-    alternative.pop();
-    alternative.push((StrategyRef::One(other), false));
-    match sampled.with_strategies(&alternative) {
-        Some(alt) => combine(&[sampled.clone(), alt], heuristic)[0] as f32,
-        None => 1.0,
-    }
+) -> f64 {
+    let n = path.len();
+    let by_light = [(StrategyRef::One(direct), false)];
+    let splits = [Split::new(n, &[]), Split::new(n - 1, &by_light)];
+    weight_of_split(path, camera, &[], &splits, own, heuristic).0
 }
