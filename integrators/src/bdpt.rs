@@ -108,6 +108,18 @@ impl<'s> Bdpt<'s> {
         })
     }
 
+    /// Tridirectional tracing if the scene's integrator is `tridir`, BDPT otherwise.
+    ///
+    /// # Errors
+    /// As [`Bdpt::new`] and [`Bdpt::tridirectional`].
+    pub fn for_scene(scene: &'s Scene) -> Result<Self, String> {
+        if scene.integrator.name == "tridir" {
+            Bdpt::tridirectional(scene)
+        } else {
+            Bdpt::new(scene)
+        }
+    }
+
     /// Also records, for paths of up to `max_vertices` vertices, each (s, t)
     /// technique's contribution, weighted and unweighted.
     #[must_use]

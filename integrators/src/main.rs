@@ -164,8 +164,7 @@ fn run(args: RenderArgs) -> Result<(), String> {
     let r = match &args.techniques {
         Some(dir) => {
             let bdpt = match scene.integrator.name.as_str() {
-                "bdpt" => Bdpt::new(&scene)?,
-                "tridir" => Bdpt::tridirectional(&scene)?,
+                "bdpt" | "tridir" => Bdpt::for_scene(&scene)?,
                 other => return Err(format!("--techniques needs -i bdpt or tridir, not {other}")),
             };
             let bdpt = bdpt.with_technique_images(args.technique_vertices);

@@ -64,8 +64,7 @@ pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
         "path" => Box::new(PathTracer::new(scene)?),
         "direct" => Box::new(PathTracer::direct(scene)?),
         "light" => Box::new(LightTracer::new(scene)?),
-        "bdpt" => Box::new(Bdpt::new(scene)?),
-        "tridir" => Box::new(Bdpt::tridirectional(scene)?),
+        "bdpt" | "tridir" => Box::new(Bdpt::for_scene(scene)?),
         other => {
             return Err(format!(
                 "the integrator '{other}' is not available yet; use path, direct, light, bdpt or tridir"

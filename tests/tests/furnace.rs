@@ -1,35 +1,27 @@
 //! Every integrator through the render loop: a closed room that emits L and
 //! reflects ρ everywhere is L / (1 − ρ) bright in every pixel.
 
-use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 
 use aether_strategies::scene::Scene;
 use integrators::render::{Settings, render};
+use tests::scene_from;
 
 fn furnace_room() -> Scene {
-    let dir = std::env::temp_dir().join(format!("aether-path-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    // One file per call: the tests run in parallel.
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let path = dir.join(format!("furnace{n}.xml"));
-    std::fs::write(
-        &path,
-        "<scene version=\"0.5.0\">
-            <integrator type=\"path\"><integer name=\"maxDepth\" value=\"-1\"/><integer name=\"rrDepth\" value=\"3\"/></integrator>
-            <shape type=\"cube\"><boolean name=\"flipNormals\" value=\"true\"/>
-                <bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"0.5\"/></bsdf>
-                <emitter type=\"area\"><rgb name=\"radiance\" value=\"1\"/></emitter></shape>
-            <shape type=\"rectangle\"><boolean name=\"portal\" value=\"true\"/></shape>
-            <sensor type=\"perspective\"><float name=\"fov\" value=\"70\"/>
-                <transform name=\"toWorld\"><lookat origin=\"0.1, 0.2, 0\" target=\"1, 0.3, 0.1\" up=\"0, 0, 1\"/></transform>
-                <film type=\"hdrfilm\"><integer name=\"width\" value=\"16\"/><integer name=\"height\" value=\"12\"/>
-                <rfilter type=\"tent\"/></film></sensor>
-        </scene>",
+    scene_from(
+        r#"<scene version="0.5.0">
+            <integrator type="path"><integer name="maxDepth" value="-1"/><integer name="rrDepth" value="3"/></integrator>
+            <shape type="cube"><boolean name="flipNormals" value="true"/>
+                <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+                <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+            <shape type="rectangle"><boolean name="portal" value="true"/></shape>
+            <sensor type="perspective"><float name="fov" value="70"/>
+                <transform name="toWorld"><lookat origin="0.1, 0.2, 0" target="1, 0.3, 0.1" up="0, 0, 1"/></transform>
+                <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="12"/>
+                <rfilter type="tent"/></film></sensor>
+        </scene>"#,
+        &[],
     )
-    .unwrap();
-    Scene::load(&path, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Renders the furnace room with `integrator` and returns the mean of the
