@@ -56,7 +56,9 @@ pub use choice::{Mixture, RussianRoulette, Select};
 pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
-pub use mis::{Heuristic, Split, Weights, combine, weight_of_split};
+pub use mis::{
+    DensityCache, Heuristic, Split, Weights, combine, weight_of_split, weights_of_split_variants,
+};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use strategy::{

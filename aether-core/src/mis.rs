@@ -133,6 +133,40 @@ impl FactorCache {
     }
 }
 
+/// Density factors kept between MIS weights of different paths of one
+/// sample, so that the densities that BDPT's connections share (a camera
+/// vertex's reverse density given the camera vertices after it, say) are
+/// evaluated once per sample rather than once per connection.
+///
+/// Factors are keyed by strategy (its address, type and
+/// [`instance`](crate::Strategy::instance)), depth class, and the
+/// identities of the target and conditioning vertices. Vertex identities
+/// are never reused, but addresses are: between two
+/// [`clear`](Self::clear)s, no strategy may be replaced at its address by
+/// a different one of the same type and instance (clear once per sample,
+/// and give strategies made in turn, like one per pixel, distinct instances).
+///
+/// ```
+/// use aether_core::DensityCache;
+/// let mut cache = DensityCache::new();
+/// cache.clear(); // at the start of each sample
+/// ```
+#[derive(Debug, Default)]
+pub struct DensityCache(FactorCache);
+
+impl DensityCache {
+    /// An empty cache.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets every factor, keeping the storage.
+    pub fn clear(&mut self) {
+        self.0.begin();
+    }
+}
+
 /// Scratch reused by every `combine` on a thread.
 #[derive(Debug, Default)]
 struct Scratch {
@@ -314,6 +348,48 @@ impl<'s, V> Split<'s, V> {
     }
 }
 
+impl<'s, V> Split<'s, V> {
+    /// Every technique of a bidirectional sampler for paths of `n`
+    /// vertices: first, for s = 1..=n, s vertices from the camera and the
+    /// rest from the light (index s − 1), with `direct` sampling the last
+    /// vertex when the light side would have one; then, with a `portal`
+    /// pair strategy, for k = 1..n − 2, k from the camera, the portal's two
+    /// and the rest from the light (index n + k − 1), again with `direct`
+    /// for a single light vertex.
+    ///
+    /// ```
+    /// use aether_core::Split;
+    /// use aether_core::testing::{LightSample, TestScene, TestVertex};
+    /// let scene = TestScene::open_box();
+    /// let light = LightSample::new(&scene);
+    /// let splits = Split::<TestVertex>::bidirectional(4, Some((&light as &dyn aether_core::DynStrategy<_>).into()), None);
+    /// assert_eq!(splits.len(), 4);
+    /// assert_eq!((splits[2].camera, splits[2].middle.len()), (3, 1)); // direct light sampling
+    /// ```
+    #[must_use]
+    pub fn bidirectional(
+        n: usize,
+        direct: Option<StrategyRef<'s, V>>,
+        portal: Option<StrategyRef<'s, V>>,
+    ) -> SmallVec<[Self; 24]> {
+        let direct = |t: usize| direct.filter(|_| t == 1).map(|d| (d, false));
+        let bidirectional = (1..=n).map(|s| Split {
+            camera: s,
+            middle: direct(n - s).into_iter().collect(),
+        });
+        let through_portal = (1..n.saturating_sub(1)).filter_map(|k| {
+            Some(Split {
+                camera: k,
+                middle: [(portal?, false)]
+                    .into_iter()
+                    .chain(direct(n - k - 2))
+                    .collect(),
+            })
+        });
+        bidirectional.chain(through_portal).collect()
+    }
+}
+
 /// The MIS weight of `path`, sampled by `splits[own]`, against every
 /// technique in `splits`, and the density of `path` under its own
 /// technique.
@@ -337,12 +413,80 @@ pub fn weight_of_split<'s, V: Vertex>(
     splits: &[Split<'s, V>],
     own: usize,
     heuristic: Heuristic,
+    cache: Option<&mut DensityCache>,
 ) -> (f64, PathDensity) {
+    if !path.is_complete() || own >= splits.len() {
+        return (0.0, PathDensity::ONE.times(Density::zero(Measure::Area)));
+    }
+    let densities = split_densities(path, camera, light, splits, cache);
+    (heuristic.weight(&densities, own), densities[own])
+}
+
+/// As [`weight_of_split`] once for each strategy in `variants` taking the
+/// place of `camera[at]`, the strategy of the camera-side vertex `at` (not
+/// the last, repeating entry of `camera`): the per-pixel weights of a
+/// path splatted to several pixels, whose camera-direction strategies
+/// differ by pixel. The other densities are evaluated once; each variant
+/// only rescales the techniques that sample vertex `at` from the camera.
+///
+/// # Panics
+/// If `at` is not below `camera.len() - 1`.
+#[allow(clippy::too_many_arguments)]
+pub fn weights_of_split_variants<'s, V: Vertex>(
+    path: &RandomSequence<'_, V>,
+    camera: &[StrategyRef<'s, V>],
+    light: &[StrategyRef<'s, V>],
+    splits: &[Split<'s, V>],
+    own: usize,
+    heuristic: Heuristic,
+    mut cache: Option<&mut DensityCache>,
+    at: usize,
+    variants: &[StrategyRef<'s, V>],
+) -> SmallVec<[(f64, PathDensity); 16]> {
+    assert!(
+        at + 1 < camera.len(),
+        "camera[{at}] repeats: it cannot vary"
+    );
+    let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
+    if !path.is_complete() || own >= splits.len() || at >= path.len() {
+        return variants.iter().map(|_| (0.0, zero)).collect();
+    }
+    let mut factor = |s: StrategyRef<'s, V>| {
+        let span = Span::new(at, 1, Some(s), false, 0);
+        path.factor(&span, cache.as_mut().map(|c| &mut c.0))
+    };
+    let at_vertex: SmallVec<[Density; 16]> = variants.iter().map(|&v| factor(v)).collect();
+    // Densities with the first variant that can sample vertex `at`, rescaled for each.
+    let base = at_vertex.iter().position(|d| !d.is_zero()).unwrap_or(0);
+    let mut with_base: SmallVec<[StrategyRef<'s, V>; 4]> = camera.iter().copied().collect();
+    with_base[at] = variants[base];
+    let densities = split_densities(path, &with_base, light, splits, cache);
+    let mut scaled: SmallVec<[PathDensity; 24]> = densities.clone();
+    at_vertex
+        .iter()
+        .map(|&d| {
+            for (k, split) in splits.iter().enumerate() {
+                scaled[k] = if split.camera > at {
+                    densities[k].divided_by(at_vertex[base]).times(d)
+                } else {
+                    densities[k]
+                };
+            }
+            (heuristic.weight(&scaled, own), scaled[own])
+        })
+        .collect()
+}
+
+/// The density of `path` under each of `splits`.
+fn split_densities<'s, V: Vertex>(
+    path: &RandomSequence<'_, V>,
+    camera: &[StrategyRef<'s, V>],
+    light: &[StrategyRef<'s, V>],
+    splits: &[Split<'s, V>],
+    mut cache: Option<&mut DensityCache>,
+) -> SmallVec<[PathDensity; 24]> {
     let n = path.len();
     let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
-    if !path.is_complete() || own >= splits.len() {
-        return (0.0, zero);
-    }
     let ends = |s: &Split<'s, V>| {
         let m: usize = s.middle.iter().map(|(x, _)| x.arity()).sum();
         (s.camera, s.camera + m)
@@ -357,21 +501,27 @@ pub fn weight_of_split<'s, V: Vertex>(
         list.get(i.min(list.len().saturating_sub(1))).copied()
     };
     // A side with no strategies cannot sample its vertices: density zero.
-    let factor = |step: Option<StrategyRef<'s, V>>, i: usize, reversed: bool| match step {
-        Some(s) => path.factor(&Span::new(i, 1, Some(s), reversed, 0), None),
-        None => Density::zero(Measure::Area),
+    let mut factor = |span: Span<'s, V>| {
+        let cache = cache.as_mut().map(|c| &mut c.0);
+        match span.strategy {
+            Some(_) => path.factor(&span, cache),
+            None => Density::zero(Measure::Area),
+        }
+    };
+    let one = |step: Option<StrategyRef<'s, V>>, i: usize, reversed: bool| {
+        Span::new(i, 1, step, reversed, 0)
     };
     // prefix[i]: vertices 0..i from the camera; suffix[i]: i..n from the light.
     let mut prefix: SmallVec<[PathDensity; 16]> = SmallVec::with_capacity(reach + 1);
     prefix.push(PathDensity::ONE);
     for i in 0..reach {
-        prefix.push(prefix[i].times(factor(step(camera, i), i, false)));
+        prefix.push(prefix[i].times(factor(one(step(camera, i), i, false))));
     }
     let mut suffix: SmallVec<[PathDensity; 16]> = SmallVec::from_elem(PathDensity::ONE, n + 1);
     for i in (from..n).rev() {
-        suffix[i] = suffix[i + 1].times(factor(step(light, n - 1 - i), i, true));
+        suffix[i] = suffix[i + 1].times(factor(one(step(light, n - 1 - i), i, true)));
     }
-    let densities: SmallVec<[PathDensity; 16]> = splits
+    splits
         .iter()
         .map(|s| {
             let (a, b) = ends(s);
@@ -381,15 +531,18 @@ pub fn weight_of_split<'s, V: Vertex>(
             let mut p = prefix[a];
             let mut start = a;
             for &(strategy, reversed) in &s.middle {
-                let span = Span::new(start, strategy.arity(), Some(strategy), reversed, 0);
-                p = p.times(path.factor(&span, None));
+                p = p.times(factor(Span::new(
+                    start,
+                    strategy.arity(),
+                    Some(strategy),
+                    reversed,
+                    0,
+                )));
                 start += strategy.arity();
             }
-            let rest = suffix[b];
-            p.times_path(rest)
+            p.times_path(suffix[b])
         })
-        .collect();
-    (heuristic.weight(&densities, own), densities[own])
+        .collect()
 }
 
 #[cfg(test)]

@@ -43,7 +43,9 @@ fn fresh_id() -> u64 {
 pub(crate) struct FactorKey {
     strategy: usize,
     kind: usize,
-    prefix_len: u32,
+    /// The strategy's depth class of the prefix length.
+    depth: u32,
+    instance: u64,
     targets: [u64; 2],
     cond: [u64; 2],
 }
@@ -52,7 +54,8 @@ impl FactorKey {
     pub(crate) const EMPTY: FactorKey = FactorKey {
         strategy: 0,
         kind: 0,
-        prefix_len: 0,
+        depth: 0,
+        instance: 0,
         targets: [0; 2],
         cond: [0; 2],
     };
@@ -70,7 +73,8 @@ impl FactorKey {
         for w in [
             self.strategy as u64,
             self.kind as u64,
-            u64::from(self.prefix_len),
+            u64::from(self.depth),
+            self.instance,
             self.targets[0],
             self.targets[1],
             self.cond[0],
@@ -99,6 +103,21 @@ pub(crate) struct Slot<'s, V> {
     pub(crate) recorded: Option<(FactorKey, Density)>,
 }
 
+impl<V> Slot<'_, V> {
+    /// Makes this vertex of a step that a slice splits strategy-less, with
+    /// no density of its own.
+    fn cut(&mut self) {
+        *self = Slot {
+            strategy: None,
+            arity: 1,
+            part: 0,
+            given: false,
+            recorded: None,
+            ..*self
+        };
+    }
+}
+
 impl<V> Clone for Slot<'_, V> {
     fn clone(&self) -> Self {
         *self
@@ -115,7 +134,7 @@ pub(crate) struct Span<'s, V> {
     pub(crate) fixed_id: u64,
     /// The strategy's memory and identity, read once rather than per factor.
     memory: usize,
-    identity: (usize, usize),
+    identity: (usize, usize, u64),
 }
 
 impl<'s, V> Span<'s, V> {
@@ -127,8 +146,11 @@ impl<'s, V> Span<'s, V> {
         fixed_id: u64,
     ) -> Self {
         let (memory, identity) = match strategy {
-            Some(s) => (s.memory(), (s.address(), s.name().as_ptr() as usize)),
-            None => (0, (0, 0)),
+            Some(s) => (
+                s.memory(),
+                (s.address(), s.name().as_ptr() as usize, s.instance()),
+            ),
+            None => (0, (0, 0, 0)),
         };
         Span {
             start,
@@ -415,29 +437,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     #[must_use]
     pub fn slice(&self, range: Range<usize>) -> Self {
         let mut s = Self::new();
-        s.vertices
-            .extend(self.vertices[range.clone()].iter().cloned());
-        s.slots.extend_from_slice(&self.slots[range.clone()]);
-        let mut k = 0;
-        while k < s.slots.len() {
-            let arity = usize::from(s.slots[k].arity);
-            let origin = range.start + k;
-            let cut = arity > 1 && (k + arity > s.slots.len() || self.span_start(origin) != origin);
-            if cut {
-                let slot = &mut s.slots[k];
-                *slot = Slot {
-                    strategy: None,
-                    arity: 1,
-                    part: 0,
-                    given: false,
-                    recorded: None,
-                    ..*slot
-                };
-                k += 1;
-            } else {
-                k += arity;
-            }
-        }
+        s.extend_from(self, range, false);
         s
     }
 
@@ -458,10 +458,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     #[must_use]
     pub fn concat(&self, other: &Self) -> Self {
         let mut s = Self::new();
-        s.vertices
-            .extend(self.vertices.iter().chain(&other.vertices).cloned());
-        s.slots
-            .extend(self.slots.iter().chain(&other.slots).copied());
+        s.extend_from(self, 0..self.len(), false)
+            .extend_from(other, 0..other.len(), false);
         s
     }
 
@@ -470,12 +468,65 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     #[must_use]
     pub fn reversed(&self) -> Self {
         let mut s = Self::new();
-        s.vertices.extend(self.vertices.iter().rev().cloned());
-        s.slots.extend(self.slots.iter().rev().map(|slot| Slot {
-            reversed: !slot.reversed,
-            ..*slot
-        }));
+        s.extend_from(self, 0..self.len(), true);
         s
+    }
+
+    /// Removes every vertex and step, keeping the storage.
+    pub fn clear(&mut self) {
+        self.truncate(0);
+    }
+
+    /// Keeps the first `len` vertices as a complete sequence, like
+    /// `slice(0..len)` in place: later vertices, unsampled and pending steps
+    /// and the recorded end go. The vertices of a multi-vertex step that
+    /// the cut splits keep no strategy.
+    pub fn truncate(&mut self, len: usize) {
+        if len < self.len() {
+            for k in self.span_start(len)..len {
+                self.slots[k].cut();
+            }
+            self.vertices.truncate(len);
+            self.slots.truncate(len);
+        }
+        self.unsampled.clear();
+        self.pending.clear();
+        self.end = None;
+    }
+
+    /// Appends `other`'s vertices in `range` with their strategies, in
+    /// order or, if `reversed`, in reverse order with each strategy's
+    /// direction flipped. Building a path from parts of subpaths this way
+    /// copies each vertex once. The vertices of a multi-vertex step that
+    /// the range cuts keep no strategy and have density zero.
+    ///
+    /// # Panics
+    /// If `range` is out of bounds, like slicing.
+    pub fn extend_from(&mut self, other: &Self, range: Range<usize>, reversed: bool) -> &mut Self {
+        let base = self.len();
+        self.vertices
+            .extend(other.vertices[range.clone()].iter().cloned());
+        self.slots.extend_from_slice(&other.slots[range.clone()]);
+        let added = &mut self.slots[base..];
+        let mut k = 0;
+        while k < added.len() {
+            let arity = usize::from(added[k].arity);
+            let origin = range.start + k;
+            if arity > 1 && (k + arity > added.len() || other.span_start(origin) != origin) {
+                added[k].cut();
+                k += 1;
+            } else {
+                k += arity;
+            }
+        }
+        if reversed {
+            self.vertices[base..].reverse();
+            self.slots[base..].reverse();
+            for slot in &mut self.slots[base..] {
+                slot.reversed = !slot.reversed;
+            }
+        }
+        self
     }
 
     /// The same vertices assigned to other strategies: `steps` lists, in
@@ -565,10 +616,14 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             }
             span.start
         };
+        let class = span
+            .strategy
+            .map_or(prefix_len, |s| s.depth_class(prefix_len));
         Some(FactorKey {
             strategy: span.identity.0,
             kind: span.identity.1,
-            prefix_len: prefix_len as u32,
+            depth: class as u32,
+            instance: span.identity.2,
             targets,
             cond,
         })

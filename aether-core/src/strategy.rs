@@ -115,6 +115,24 @@ pub trait Strategy<V: Vertex> {
     fn memory(&self) -> usize {
         usize::MAX
     }
+
+    /// The prefix lengths a density depends on, as classes: densities for
+    /// prefix lengths in the same class must be equal. The default, each
+    /// length its own class, is always correct; a strategy whose density
+    /// ignores the length (or, like Russian roulette from a fixed depth on,
+    /// only compares it with a threshold) says so here, so that MIS reuses
+    /// its densities across candidates of different lengths.
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        prefix_len
+    }
+
+    /// What tells this strategy apart from other values of its type that
+    /// may take its place in memory, such as the pixel of a per-pixel
+    /// camera strategy made for each pixel in turn. Cached densities are
+    /// keyed by the strategy's address, type and this value.
+    fn instance(&self) -> u64 {
+        0
+    }
 }
 
 /// A strategy that samples two vertices at once (a portal segment). The
@@ -130,6 +148,24 @@ pub trait PairStrategy<V: Vertex> {
     /// As [`Strategy::memory`].
     fn memory(&self) -> usize {
         usize::MAX
+    }
+
+    /// The prefix lengths a density depends on, as classes: densities for
+    /// prefix lengths in the same class must be equal. The default, each
+    /// length its own class, is always correct; a strategy whose density
+    /// ignores the length (or, like Russian roulette from a fixed depth on,
+    /// only compares it with a threshold) says so here, so that MIS reuses
+    /// its densities across candidates of different lengths.
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        prefix_len
+    }
+
+    /// What tells this strategy apart from other values of its type that
+    /// may take its place in memory, such as the pixel of a per-pixel
+    /// camera strategy made for each pixel in turn. Cached densities are
+    /// keyed by the strategy's address, type and this value.
+    fn instance(&self) -> u64 {
+        0
     }
 }
 
@@ -152,6 +188,10 @@ pub enum StepKind {
 pub trait DynStrategy<V> {
     /// As [`Strategy::memory`].
     fn memory(&self) -> usize;
+    /// As [`Strategy::depth_class`].
+    fn depth_class(&self, prefix_len: usize) -> usize;
+    /// As [`Strategy::instance`].
+    fn instance(&self) -> u64;
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
     /// Samples one step, pushing its vertex to `out`.
@@ -170,6 +210,10 @@ pub trait DynStrategy<V> {
 pub trait DynPairStrategy<V> {
     /// As [`PairStrategy::memory`].
     fn memory(&self) -> usize;
+    /// As [`PairStrategy::depth_class`].
+    fn depth_class(&self, prefix_len: usize) -> usize;
+    /// As [`PairStrategy::instance`].
+    fn instance(&self) -> u64;
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
     /// Samples one step, pushing its two vertices to `out` in sampling order.
@@ -210,6 +254,12 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
     fn memory(&self) -> usize {
         Strategy::memory(self)
     }
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        Strategy::depth_class(self, prefix_len)
+    }
+    fn instance(&self) -> u64 {
+        Strategy::instance(self)
+    }
     fn name(&self) -> &'static str {
         std::any::type_name::<S>()
     }
@@ -230,6 +280,12 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
     fn memory(&self) -> usize {
         PairStrategy::memory(self)
+    }
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        PairStrategy::depth_class(self, prefix_len)
+    }
+    fn instance(&self) -> u64 {
+        PairStrategy::instance(self)
     }
     fn name(&self) -> &'static str {
         std::any::type_name::<S>()
@@ -303,12 +359,30 @@ impl<V> StrategyRef<'_, V> {
         }
     }
 
+    /// As [`Strategy::depth_class`].
+    #[must_use]
+    pub fn depth_class(&self, prefix_len: usize) -> usize {
+        match self {
+            StrategyRef::One(s) => s.depth_class(prefix_len),
+            StrategyRef::Two(s) => s.depth_class(prefix_len),
+        }
+    }
+
     /// The strategy's type name.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
             StrategyRef::One(s) => s.name(),
             StrategyRef::Two(s) => s.name(),
+        }
+    }
+
+    /// As [`Strategy::instance`].
+    #[must_use]
+    pub fn instance(&self) -> u64 {
+        match self {
+            StrategyRef::One(s) => s.instance(),
+            StrategyRef::Two(s) => s.instance(),
         }
     }
 

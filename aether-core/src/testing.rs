@@ -347,6 +347,9 @@ impl Strategy<TestVertex> for Bounce<'_> {
     fn memory(&self) -> usize {
         2
     }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
+    }
 }
 
 /// Area sampling of the light rectangle: a triangle by area, a point on it.

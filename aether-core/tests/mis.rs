@@ -341,7 +341,7 @@ fn one<'a>(
 
 /// `weight_of_split`, which builds no candidate sequences, gives the
 /// weights and own densities that `combine` gives for the same BDPT
-/// candidates.
+/// candidates, with or without densities cached across candidates.
 #[test]
 fn weights_of_splits_match_combine_on_bdpt_candidates() {
     use aether_core::{Split, weight_of_split};
@@ -352,9 +352,11 @@ fn weights_of_splits_match_combine_on_bdpt_candidates() {
     let mut rng = Pcg32::new(21, 0);
     let mut out = smallvec::SmallVec::new();
     let mut compared = 0;
+    let mut cache = aether_core::DensityCache::new();
     for length in 2..7 {
         for _ in 0..200 {
             f.sample_candidates(length, &mut rng, &mut out);
+            cache.clear();
             // Each candidate's split: its leading camera-side vertices.
             let splits: Vec<Split<'_, TestVertex>> = out
                 .iter()
@@ -365,7 +367,41 @@ fn weights_of_splits_match_combine_on_bdpt_candidates() {
                 .collect();
             let expected = combine(&out, Heuristic::POWER);
             for (i, path) in out.iter().enumerate() {
-                let (w, p) = weight_of_split(path, &camera, &light, &splits, i, Heuristic::POWER);
+                let (w, p) =
+                    weight_of_split(path, &camera, &light, &splits, i, Heuristic::POWER, None);
+                // Densities shared with the other candidates, from the cache.
+                let (w_cached, p_cached) = weight_of_split(
+                    path,
+                    &camera,
+                    &light,
+                    &splits,
+                    i,
+                    Heuristic::POWER,
+                    Some(&mut cache),
+                );
+                assert_eq!((w_cached, p_cached), (w, p));
+                // The same weights with camera[1] varied, as splats vary it per pixel.
+                let variants = [one(&f.look), one(&f.bounce)];
+                let varied = aether_core::weights_of_split_variants(
+                    path,
+                    &camera,
+                    &light,
+                    &splits,
+                    i,
+                    Heuristic::POWER,
+                    Some(&mut cache),
+                    1,
+                    &variants,
+                );
+                for (v, &(w_v, p_v)) in variants.iter().zip(&varied) {
+                    let with = [camera[0], *v, camera[2]];
+                    let expected =
+                        weight_of_split(path, &with, &light, &splits, i, Heuristic::POWER, None);
+                    assert!((w_v - expected.0).abs() < 1e-9, "{w_v} vs {}", expected.0);
+                    let same = p_v.is_zero() && expected.1.is_zero()
+                        || (p_v.value() / expected.1.value() - 1.0).abs() < 1e-9;
+                    assert!(same, "{p_v} vs {}", expected.1);
+                }
                 let own = path.pdf();
                 assert!(
                     (w - expected[i]).abs() < 1e-9,

@@ -143,3 +143,47 @@ fn reversing_keeps_pair_densities() {
         checked += 1;
     }
 }
+
+/// Building paths in place (`truncate`, `extend_from`) gives the same
+/// vertices and densities as `slice`, `concat` and `reversed`, and a cut
+/// through a pair leaves its halves without density.
+#[test]
+fn building_in_place_matches_slicing() {
+    let scene = TestScene::open_box();
+    let (portal, camera, look, bounce) = (
+        Portal::new(&scene),
+        CameraPoint::default(),
+        LookDown::new(&scene),
+        Bounce::new(&scene),
+    );
+    let mut rng = Pcg32::new(11, 0);
+    let mut checked = 0;
+    while checked < 50 {
+        let mut eye = RandomSequence::new();
+        eye.append(&camera).append(&look).append(&bounce);
+        let mut pair = RandomSequence::new();
+        pair.append_pair(&portal).append(&bounce);
+        if eye.sample(&mut rng) != StepKind::Vertex || pair.sample(&mut rng) != StepKind::Vertex {
+            continue;
+        }
+        let expected = eye.slice(0..2).concat(&pair.reversed());
+        let mut built = RandomSequence::new();
+        built
+            .extend_from(&eye, 0..2, false)
+            .extend_from(&pair, 0..3, true);
+        assert_eq!(built.vertices(), expected.vertices());
+        assert_eq!(built.pdf(), expected.pdf());
+        assert!(!built.pdf().is_zero());
+
+        let mut truncated = pair.clone();
+        truncated.truncate(1);
+        assert_eq!(truncated.vertices(), pair.slice(0..1).vertices());
+        assert!(truncated.pdf().is_zero(), "half a pair has no density");
+        let mut whole = eye.clone();
+        whole.append(&bounce).sample(&mut rng);
+        whole.truncate(3);
+        assert!(whole.is_complete());
+        assert_eq!(whole.pdf(), eye.pdf());
+        checked += 1;
+    }
+}

@@ -288,6 +288,9 @@ impl Strategy<SceneVertex> for CameraPosition<'_> {
     fn memory(&self) -> usize {
         0
     }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
+    }
 }
 
 /// The first hit of a primary ray of one pixel, from the camera vertex.
@@ -325,5 +328,11 @@ impl Strategy<SceneVertex> for CameraDirection<'_> {
     }
     fn memory(&self) -> usize {
         1
+    }
+    fn instance(&self) -> u64 {
+        (u64::from(self.pixel[1]) << 32) | u64::from(self.pixel[0])
+    }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
     }
 }

@@ -4,10 +4,10 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::lights::Lights;
 use crate::scene::Scene;
+use crate::subpath::{End, Subpath};
 use crate::vertex::{SceneVertex, Site};
 
 /// |cos| of the edge direction `d` at `v`: one for points and vertices at
@@ -88,28 +88,7 @@ impl<'a> Integrand<'a> {
     /// visibility.
     #[must_use]
     pub fn throughput(&self, path: &[SceneVertex], connections: &[usize]) -> DVec3 {
-        let n = path.len();
-        if n < 2 {
-            return DVec3::ZERO;
-        }
-        let mut f = DVec3::ONE;
-        for i in 0..n - 1 {
-            f *= f64::from(geometry_term(&path[i], &path[i + 1]));
-        }
-        for i in 1..n - 1 {
-            let (Some(bsdf), Some(to_light), Some(to_camera)) = (
-                Bsdf::at(self.scene, &path[i]),
-                path[i].direction_to(&path[i + 1]),
-                path[i].direction_to(&path[i - 1]),
-            ) else {
-                return DVec3::ZERO;
-            };
-            f *= bsdf.eval(to_light, to_camera).as_dvec3();
-        }
-        let Some(out) = path[n - 1].direction_to(&path[n - 2]) else {
-            return DVec3::ZERO;
-        };
-        f *= self.lights.emitted(&path[n - 1], out).as_dvec3();
+        let f = Subpath::of(*self, End::Camera, path).emitted(path.len());
         if f == DVec3::ZERO
             || connections
                 .iter()
@@ -120,21 +99,36 @@ impl<'a> Integrand<'a> {
         f
     }
 
+    /// The scene.
+    #[must_use]
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
+    /// The radiance `light` emits toward the unit direction `toward` (zero
+    /// if it is not on a light).
+    #[must_use]
+    pub fn emitted(&self, light: &SceneVertex, toward: Vec3) -> Vec3 {
+        self.lights.emitted(light, toward)
+    }
+
+    /// The camera's importance for pixel `pixel` along the first edge of
+    /// `path` (zero for a path of fewer than two vertices).
+    #[must_use]
+    pub fn importance(&self, pixel: [u32; 2], path: &[SceneVertex]) -> f64 {
+        let first = path.first().zip(path.get(1));
+        first
+            .and_then(|(a, b)| Some(self.camera.importance(pixel, a, a.direction_to(b)?)))
+            .unwrap_or(0.0)
+    }
+
     /// f(x̄) for pixel `pixel`: the camera's importance for the first edge
     /// times [`throughput`](Self::throughput).
     #[must_use]
     pub fn evaluate(&self, pixel: [u32; 2], path: &[SceneVertex], connections: &[usize]) -> DVec3 {
-        let Some(first) = path
-            .first()
-            .zip(path.get(1))
-            .and_then(|(a, b)| a.direction_to(b))
-        else {
-            return DVec3::ZERO;
-        };
-        let importance = self.camera.importance(pixel, &path[0], first);
-        if importance == 0.0 {
-            return DVec3::ZERO;
+        match self.importance(pixel, path) {
+            0.0 => DVec3::ZERO,
+            importance => importance * self.throughput(path, connections),
         }
-        importance * self.throughput(path, connections)
     }
 }

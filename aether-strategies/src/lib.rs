@@ -17,6 +17,7 @@ pub mod portal;
 pub mod scattering;
 pub mod scene;
 pub mod spectrum;
+pub mod subpath;
 pub mod vertex;
 
 pub use aether_core as core;

@@ -398,6 +398,9 @@ impl Strategy<SceneVertex> for EmitterPosition<'_, '_> {
     fn memory(&self) -> usize {
         0
     }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
+    }
 }
 
 /// The first bounce of a light path: cosine-distributed about an area
@@ -457,6 +460,9 @@ impl Strategy<SceneVertex> for EmitterDirection<'_, '_> {
     }
     fn memory(&self) -> usize {
         1
+    }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
     }
 }
 
@@ -545,5 +551,8 @@ impl Strategy<SceneVertex> for DirectEmitter<'_, '_> {
     }
     fn memory(&self) -> usize {
         1
+    }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
     }
 }

@@ -109,4 +109,7 @@ impl PairStrategy<SceneVertex> for PortalSegment<'_> {
     fn memory(&self) -> usize {
         0
     }
+    fn depth_class(&self, _prefix_len: usize) -> usize {
+        0
+    }
 }

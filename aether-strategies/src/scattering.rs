@@ -81,4 +81,8 @@ impl Strategy<SceneVertex> for BsdfSampling<'_> {
     fn memory(&self) -> usize {
         2
     }
+    // Only roulette reads the depth, and only whether it has started.
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        usize::from(prefix_len >= self.roulette.start)
+    }
 }

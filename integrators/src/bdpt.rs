@@ -9,16 +9,20 @@
 //! tracing adds, for every length, the paths that splice one portal segment
 //! between a camera prefix and a light prefix. Every path is weighed by MIS
 //! against every technique that could have produced it, each technique being
-//! no more than a list of strategies ([`aether_core::weight_of`]).
+//! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
-use aether_core::{DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, weight_of_split};
-use aether_strategies::bsdf::{Bsdf, Transport};
+use aether_core::{
+    DensityCache, DynStrategy, Heuristic, PathDensity, Pcg32, RandomSequence, StepKind,
+    StrategyRef, weights_of_split_variants,
+};
+use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
 use aether_strategies::integrand::Integrand;
 use aether_strategies::lights::{DirectEmitter, EmitterDirection, EmitterPosition, Lights};
 use aether_strategies::portal::PortalSegment;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
+use aether_strategies::subpath::{End, Subpath};
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
@@ -27,6 +31,11 @@ use crate::estimator::{Estimator, Splats, path_limits};
 use crate::techniques::TechniqueImages;
 
 type Path<'a> = RandomSequence<'a, SceneVertex>;
+
+thread_local! {
+    /// Densities shared by the connections of one sample.
+    static DENSITIES: std::cell::RefCell<DensityCache> = std::cell::RefCell::new(DensityCache::new());
+}
 
 /// Where a technique splits a path: `Bdpt(s)` samples the first s vertices
 /// from the camera and the rest from the light; `Portal(k)` samples the
@@ -149,11 +158,6 @@ impl<'s> Bdpt<'s> {
             direct: lights.direct(),
         }
     }
-
-    /// True if a connection can end at `v`: not on a purely specular surface.
-    fn connectible(&self, v: &SceneVertex) -> bool {
-        Bsdf::at(self.scene, v).is_none_or(|b| !b.is_dirac())
-    }
 }
 
 fn one<'a>(s: &'a dyn DynStrategy<SceneVertex>) -> StrategyRef<'a, SceneVertex> {
@@ -175,139 +179,169 @@ fn walk<'a>(
     path
 }
 
-/// `prefix` followed by a vertex sampled on a light from its last vertex.
-fn directly<'a>(prefix: Path<'a>, direct: &'a DirectEmitter<'_, '_>, rng: &mut Pcg32) -> Path<'a> {
-    let mut p = prefix;
-    p.append(direct).sample(rng);
-    p
-}
-
 impl Estimator for Bdpt<'_> {
     fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3 {
         let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
             return Vec3::ZERO;
         };
-        let kit = self.kit(lights, pixel);
-        let max = self.max_vertices;
+        let kit = &self.kit(lights, pixel);
+        let (max, f) = (self.max_vertices, self.integrand(lights));
+        DENSITIES.with_borrow_mut(DensityCache::clear);
         let cam = walk([&kit.lens, &kit.look], &kit.scatter, max, rng);
         let light = walk([&kit.emit, &kit.leave], &kit.gather, max - 1, rng);
-        let (c, l) = (cam.vertices(), light.vertices());
+        let eye = Subpath::of(f, End::Camera, cam.vertices());
+        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        let mut run = Run {
+            kit,
+            pixel,
+            rng,
+            splats,
+            path: RandomSequence::new(),
+        };
         let mut radiance = DVec3::ZERO;
-        for s in 1..=c.len() {
-            let open = s == 1 || self.connectible(&c[s - 1]);
-            for t in 0..=l.len().max(1).min(max - s) {
-                let path = match t {
-                    0 if s >= 2 && lights.emitter_of(&c[s - 1]).is_some() => cam.slice(0..s),
-                    1 if open => directly(cam.slice(0..s), &kit.direct, rng),
-                    2.. if open && self.connectible(&l[t - 1]) => {
-                        cam.slice(0..s).concat(&light.slice(0..t).reversed())
-                    }
-                    _ => continue,
-                };
-                let joins: &[usize] = if t == 0 { &[] } else { &[s - 1] };
-                radiance += self.contribute(&kit, &path, Split::Bdpt(s), joins, pixel, splats);
-            }
+        for s in 1..=cam.len() {
+            radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
         }
-        if let Some(portal) = &self.portal {
-            let mut segment = RandomSequence::new();
-            if segment.append_pair(portal).sample(rng) == aether_core::StepKind::Vertex {
-                let lit = directly(segment.clone(), &kit.direct, rng);
-                for k in 1..=c.len().min(max.saturating_sub(2)) {
-                    for t in 0..=l.len().max(1).min(max - k - 2) {
-                        let middle = if t == 1 { &lit } else { &segment };
-                        let tail = light.slice(0..if t == 1 { 0 } else { t }).reversed();
-                        let path = cam.slice(0..k).concat(middle).concat(&tail);
-                        let joins: &[usize] = if t == 0 { &[k - 1] } else { &[k - 1, k + 1] };
-                        radiance +=
-                            self.contribute(&kit, &path, Split::Portal(k), joins, pixel, splats);
-                    }
-                }
+        let Some(portal) = &self.portal else {
+            return radiance.as_vec3();
+        };
+        let mut head = RandomSequence::new();
+        for k in 1..=cam.len().min(max.saturating_sub(2)) {
+            head.clear();
+            let segment = head
+                .extend_from(&cam, 0..k, false)
+                .append_pair(portal)
+                .sample(run.rng);
+            if segment == StepKind::Vertex && f.visible(&cam.vertices()[k - 1], &head.vertices()[k])
+            {
+                let mut side = Subpath::of(f, End::Camera, &cam.vertices()[..k]);
+                side.extend(&head.vertices()[k..]);
+                radiance += self.join(&mut run, &head, (&side, k + 2), ends, Split::Portal(k));
             }
         }
         radiance.as_vec3()
     }
 }
 
+/// What the connections of one sample share.
+struct Run<'r, 'a, 's> {
+    kit: &'a Kit<'a, 's>,
+    pixel: [u32; 2],
+    rng: &'r mut Pcg32,
+    splats: &'r mut Splats,
+    path: Path<'a>,
+}
+
 impl<'s> Bdpt<'s> {
-    /// The weighted estimate of `path`, sampled by `own`, with its
-    /// visibility tested on the edges after the vertices in `joins`: returned
-    /// for `pixel` if the camera subpath chose the pixel, splatted otherwise.
-    fn contribute(
+    /// Joins the first `n` vertices of the camera side (`head`, whose
+    /// integrand products are `side`) to every light prefix, to a light
+    /// directly, or to nothing if they end on a light: the estimates of
+    /// technique `own`.
+    fn join<'a>(
         &self,
-        kit: &Kit<'_, 's>,
-        path: &Path<'_>,
+        run: &mut Run<'_, 'a, 's>,
+        head: &Path<'a>,
+        (side, n): (&Subpath<'_>, usize),
+        (light, lamp): (&Path<'a>, &Subpath<'_>),
         own: Split,
-        joins: &[usize],
-        pixel: [u32; 2],
-        splats: &mut Splats,
     ) -> DVec3 {
-        let v = path.vertices();
-        let first = v.get(1).filter(|_| path.is_complete());
-        let (Some(f), Some(d)) = (self.integrand(), first.and_then(|b| v[0].direction_to(b)))
+        let mut radiance = DVec3::ZERO;
+        for t in 0..=lamp.len().max(1).min(self.max_vertices - n) {
+            run.path.clear();
+            run.path.extend_from(head, 0..n, false);
+            let through = match t {
+                0 => side.emitted(n),
+                1 if side.connectible(n - 1)
+                    && run.path.append_sample(&run.kit.direct, run.rng) =>
+                {
+                    side.connect_lamp(n, &run.path.vertices()[n])
+                }
+                2.. if side.connectible(n - 1) && lamp.connectible(t - 1) => {
+                    side.connect(n, lamp, t)
+                }
+                _ => continue,
+            };
+            if t >= 2 && through != DVec3::ZERO {
+                run.path.extend_from(light, 0..t, true);
+            }
+            radiance += self.contribute(run, own, through);
+        }
+        radiance
+    }
+
+    /// The weighted estimate of `run.path`, sampled by `own`, whose
+    /// integrand without the camera's importance is `through`: returned if
+    /// the camera subpath chose the pixel, splatted otherwise.
+    fn contribute(&self, run: &mut Run<'_, '_, 's>, own: Split, through: DVec3) -> DVec3 {
+        let v = run.path.vertices();
+        // Occluded or black paths need no weight.
+        let Some(d) = v
+            .get(1)
+            .filter(|_| through != DVec3::ZERO)
+            .and_then(|b| v[0].direction_to(b))
         else {
             return DVec3::ZERO;
         };
-        let through = f.throughput(v, joins);
-        let estimate = |j: [u32; 2], look: &CameraDirection<'_>| {
-            // Occluded or black paths need no weight.
-            let open = through != DVec3::ZERO;
-            let (w, p) = open.then(|| self.weight(kit, look, own, path))?;
-            if p.is_nan() || p <= 0.0 {
-                return None;
-            }
-            let unweighted = through * self.camera.importance(j, &v[0], d) / p;
-            if let (Some(images), Split::Bdpt(s)) = (&self.images, own) {
-                images.add(s, v.len() - s, j, unweighted * w, unweighted, s == 1);
-            }
-            Some(unweighted * w).filter(|e| e.is_finite())
+        let splat = matches!(own, Split::Bdpt(1) | Split::Portal(1));
+        let pixels: SmallVec<[_; 16]> = match splat {
+            true => self
+                .camera
+                .pixels_toward(&v[0], d)
+                .map(|j| (j, self.camera.direction(self.scene, j)))
+                .collect(),
+            false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
-        if !matches!(own, Split::Bdpt(1) | Split::Portal(1)) {
-            return estimate(pixel, &kit.look).unwrap_or(DVec3::ZERO);
-        }
-        for j in self.camera.pixels_toward(&v[0], d) {
-            if let Some(e) = estimate(j, &self.camera.direction(self.scene, j)) {
-                splats.push((j, e.as_vec3()));
+        let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
+        let mut seen = DVec3::ZERO;
+        for (&(j, _), (w, p)) in pixels
+            .iter()
+            .zip(self.weights(run.kit, &looks, own, &run.path))
+        {
+            let unweighted = through * self.camera.importance(j, &v[0], d) / p;
+            if let (Some(images), Split::Bdpt(s), true) = (&self.images, own, p > 0.0) {
+                images.add(s, v.len() - s, j, unweighted * w, unweighted, splat);
+            }
+            match unweighted * w {
+                e if p <= 0.0 || !e.is_finite() => {}
+                e if splat => run.splats.push((j, e.as_vec3())),
+                e => seen = e,
             }
         }
-        DVec3::ZERO
+        seen
     }
 
-    fn integrand(&self) -> Option<Integrand<'_>> {
-        let lights = self.lights.as_ref()?;
-        Some(Integrand::new(self.scene, &self.camera, lights))
+    fn integrand<'a>(&'a self, lights: &'a Lights<'s>) -> Integrand<'a> {
+        Integrand::new(self.scene, &self.camera, lights)
     }
 
-    /// The MIS weight of `path` (for the pixel `look` samples) against
-    /// every split of it, and its density under its own.
-    fn weight(
-        &self,
-        kit: &Kit<'_, 's>,
-        look: &CameraDirection<'_>,
+    /// The MIS weights of `path` for the pixels of `looks`, the camera
+    /// direction strategies of each, against every split of it, and its
+    /// density under its own (zero where it has none).
+    fn weights<'a>(
+        &'a self,
+        kit: &'a Kit<'_, 's>,
+        looks: &[StrategyRef<'a, SceneVertex>],
         own: Split,
         path: &Path<'_>,
-    ) -> (f64, f64) {
+    ) -> SmallVec<[(f64, f64); 16]> {
         let n = path.len();
-        let direct = |t: usize| (t == 1).then_some((one(&kit.direct), false));
-        let portal = self.portal.as_ref().map(|p| (StrategyRef::Two(p), false));
-        let splits = (1..=n)
-            .map(|s| aether_core::Split {
-                camera: s,
-                middle: direct(n - s).into_iter().collect(),
-            })
-            .chain((1..n.saturating_sub(1)).filter_map(|k| {
-                Some(aether_core::Split {
-                    camera: k,
-                    middle: [portal?].into_iter().chain(direct(n - k - 2)).collect(),
-                })
-            }));
-        let splits: SmallVec<[_; 24]> = splits.collect();
+        let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p as _));
+        let splits = aether_core::Split::bidirectional(n, Some(one(&kit.direct)), portal);
         let index = match own {
             Split::Bdpt(s) => s - 1,
             Split::Portal(k) => n + k - 1,
         };
-        let camera = [one(&kit.lens), one(look), one(&kit.scatter)];
+        // No pixel (a splat off the film) leaves nothing to weigh.
+        let Some(&look) = looks.first() else {
+            return SmallVec::new();
+        };
+        let camera = [one(&kit.lens), look, one(&kit.scatter)];
         let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
-        let (w, p) = weight_of_split(path, &camera, &light, &splits, index, self.heuristic);
-        (w, if p.is_zero() { 0.0 } else { p.value() })
+        let weights = DENSITIES.with_borrow_mut(|cache| {
+            let (h, c) = (self.heuristic, Some(cache));
+            weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
+        });
+        let value = |p: PathDensity| if p.is_zero() { 0.0 } else { p.value() };
+        weights.iter().map(|&(w, p)| (w, value(p))).collect()
     }
 }

@@ -15,6 +15,7 @@
 
 pub mod bdpt;
 pub mod cornell;
+pub mod direct;
 pub mod estimator;
 pub mod film;
 pub mod light;

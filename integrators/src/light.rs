@@ -2,12 +2,13 @@
 //! camera and splatted where it lands on the film.
 
 use aether_core::{Pcg32, RandomSequence};
-use aether_strategies::bsdf::{Bsdf, Transport};
+use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
 use aether_strategies::lights::Lights;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
+use aether_strategies::subpath::{End, Subpath};
 use glam::{DVec3, Vec3};
 
 use crate::estimator::{Estimator, Splats, estimate, path_limits};
@@ -60,30 +61,34 @@ impl Estimator for LightTracer<'_> {
         let f = Integrand::new(self.scene, &self.camera, lights);
         let (emit, leave) = (lights.position(), lights.direction());
         let gather = BsdfSampling::new(self.scene, Transport::Importance, self.roulette);
-        let (lens, look) = (
+        let (position, look) = (
             self.camera.position(),
             self.camera.direction(self.scene, pixel),
         );
         let mut eye = RandomSequence::new();
-        eye.append(&lens).append(&look).sample(rng);
-        let seen = if eye.is_complete() {
-            estimate(f.evaluate(pixel, eye.vertices(), &[]), &eye)
-        } else {
-            DVec3::ZERO
-        };
+        eye.append(&position).append(&look).sample(rng);
+        let seen = estimate(f.evaluate(pixel, eye.vertices(), &[]), &eye);
         let mut light = RandomSequence::new();
         light.append(&emit).append(&leave).sample(rng);
+        let lens = Subpath::of(f, End::Camera, &eye.vertices()[..eye.len().min(1)]);
+        let mut lamp = Subpath::new(f, End::Light);
+        let mut path = RandomSequence::new();
         while light.is_complete() && light.len() < self.max_vertices && !eye.is_empty() {
-            let last = &light.vertices()[light.len() - 1];
-            if Bsdf::at(self.scene, last).is_some_and(|b| !b.is_dirac()) {
-                let path = eye.slice(0..1).concat(&light.reversed());
-                let v = path.vertices();
-                let through = estimate(f.throughput(v, &[0]), &path);
-                if let (Some(d), true) = (v[0].direction_to(&v[1]), through != DVec3::ZERO) {
-                    for j in self.camera.pixels_toward(&v[0], d) {
-                        let w = through * self.camera.importance(j, &v[0], d);
-                        splats.push((j, w.as_vec3()));
-                    }
+            let t = light.len();
+            lamp.extend(&light.vertices()[lamp.len()..]);
+            let through = match lamp.bsdf(t - 1) {
+                Some(b) if !b.is_dirac() => lens.connect(1, &lamp, t),
+                _ => DVec3::ZERO,
+            };
+            if through != DVec3::ZERO {
+                path.clear();
+                path.extend_from(&eye, 0..1, false)
+                    .extend_from(&light, 0..t, true);
+                let (v, through) = (path.vertices(), estimate(through, &path));
+                let d = v[0].direction_to(&v[1]).unwrap_or(Vec3::Z);
+                for j in self.camera.pixels_toward(&v[0], d) {
+                    let w = through * self.camera.importance(j, &v[0], d);
+                    splats.push((j, w.as_vec3()));
                 }
             }
             light.append(&gather).sample(rng);

@@ -99,7 +99,7 @@ struct RenderArgs {
     /// Exposure of the PNG preview, in stops.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     exposure: f32,
-    /// Scene parameter, as name=value (overrides the file's <default>).
+    /// Scene parameter, as name=value (overrides the file's `<default>`).
     #[arg(short = 'D', value_parser = parse_param)]
     define: Vec<(String, String)>,
     /// Also write BDPT's (s, t) technique images, weighted and unweighted, into this folder.

@@ -3,7 +3,7 @@
 //! ways each light vertex could have been sampled.
 
 use aether_core::{
-    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StepKind, StrategyRef, weight_of_split,
+    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef, weight_of_split,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
@@ -11,10 +11,11 @@ use aether_strategies::integrand::Integrand;
 use aether_strategies::lights::Lights;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
+use aether_strategies::subpath::{End, Subpath};
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 
-use crate::estimator::{Estimator, Splats, estimate, path_limits};
+use crate::estimator::{Estimator, Splats, path_limits};
 
 /// A unidirectional path tracer with next-event estimation.
 #[derive(Debug)]
@@ -44,18 +45,6 @@ impl<'s> PathTracer<'s> {
             heuristic: Heuristic::POWER,
         })
     }
-
-    /// Direct lighting: the same tracer stopped after the first bounce
-    /// (light sampling and BSDF sampling at the first hit, weighed by MIS).
-    ///
-    /// # Errors
-    /// As [`PathTracer::new`].
-    pub fn direct(scene: &'s Scene) -> Result<Self, String> {
-        Ok(PathTracer {
-            max_depth: 2,
-            ..PathTracer::new(scene)?
-        })
-    }
 }
 
 impl Estimator for PathTracer<'_> {
@@ -63,58 +52,52 @@ impl Estimator for PathTracer<'_> {
         let Some(lights) = &self.lights else {
             return Vec3::ZERO;
         };
-        let (lens, look) = (
-            self.camera.position(),
-            self.camera.direction(self.scene, pixel),
-        );
+        let lens = self.camera.position();
+        let look = self.camera.direction(self.scene, pixel);
         let bsdf = BsdfSampling::new(self.scene, Transport::Radiance, self.roulette);
         let direct = lights.direct();
         let f = Integrand::new(self.scene, &self.camera, lights);
         let camera = [&lens as &dyn DynStrategy<_>, &look, &bsdf].map(StrategyRef::One);
         let mut path = RandomSequence::new();
-        path.append(&lens).append(&look);
-        if path.sample(rng) != StepKind::Vertex {
+        if !path.append(&lens).append_sample(&look, rng) {
             return Vec3::ZERO;
         }
-        let mut radiance = Vec3::ZERO;
+        let importance = f.importance(pixel, path.vertices());
+        let mut eye = Subpath::of(f, End::Camera, path.vertices());
+        let mut radiance = DVec3::ZERO;
         loop {
-            let k = path.len() - 1;
+            let n = path.len();
             // Emission reached by the last step (direct sampling cannot see
             // what the camera sees first).
-            let emitted = f.evaluate(pixel, path.vertices(), &[]);
+            let emitted = eye.emitted(n);
             if emitted != DVec3::ZERO {
-                let w = if k == 1 {
-                    1.0
-                } else {
-                    weight(&path, &camera, &direct, 0, self.heuristic)
-                };
-                radiance += estimate(emitted * w, &path).as_vec3();
+                radiance +=
+                    emitted * importance * weight(&path, &camera, &direct, 0, self.heuristic);
             }
-            if k >= self.max_depth {
-                break;
-            }
-            let mut to_light = path.clone();
-            to_light.append(&direct);
-            if to_light.sample(rng) == StepKind::Vertex {
-                let lit = f.evaluate(pixel, to_light.vertices(), &[k]);
+            if n > self.max_depth || !eye.connectible(n - 1) {
+                // A specular vertex sees no light by sampling it.
+            } else if path.append_sample(&direct, rng) {
+                let lit = eye.connect_lamp(n, &path.vertices()[n]);
                 if lit != DVec3::ZERO {
-                    let w = weight(&to_light, &camera, &direct, 1, self.heuristic);
-                    radiance += estimate(lit * w, &to_light).as_vec3();
+                    radiance +=
+                        lit * importance * weight(&path, &camera, &direct, 1, self.heuristic);
                 }
             }
-            path.append(&bsdf);
-            if path.sample(rng) != StepKind::Vertex {
+            path.truncate(n);
+            if n > self.max_depth || !path.append_sample(&bsdf, rng) {
                 break;
             }
+            eye.push(path.vertices()[n]);
         }
-        radiance
+        radiance.as_vec3()
     }
 }
 
 /// The MIS weight of `path` as made by technique `own` of the two a path
-/// tracer has for its last vertex: 0, BSDF sampling like the vertices
-/// before it; 1, direct light sampling.
-fn weight(
+/// tracer has for its last vertex (0, BSDF sampling like the vertices
+/// before it; 1, direct light sampling), over its density: zero where the
+/// density vanishes (a grazing vertex, whose contribution vanishes with it).
+pub(crate) fn weight(
     path: &RandomSequence<'_, SceneVertex>,
     camera: &[StrategyRef<'_, SceneVertex>],
     direct: &dyn DynStrategy<SceneVertex>,
@@ -123,6 +106,10 @@ fn weight(
 ) -> f64 {
     let n = path.len();
     let by_light = [(StrategyRef::One(direct), false)];
+    // What the camera sees first has one technique: direct sampling cannot see through the lens.
     let splits = [Split::new(n, &[]), Split::new(n - 1, &by_light)];
-    weight_of_split(path, camera, &[], &splits, own, heuristic).0
+    let splits = if n == 2 { &splits[..1] } else { &splits[..] };
+    let (w, p) = weight_of_split(path, camera, &[], splits, own, heuristic, None);
+    let w_over_p = Some(w / p.value()).filter(|r| r.is_finite() && !p.is_zero());
+    w_over_p.unwrap_or(0.0)
 }

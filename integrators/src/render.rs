@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use aether_strategies::geometry::rays_cast;
 
 use crate::bdpt::Bdpt;
+use crate::direct::DirectLighting;
 use crate::estimator::{Estimator, Splats};
 use crate::film::{Film, SplatBuffer, is_valid};
 use crate::light::LightTracer;
@@ -62,7 +63,7 @@ pub struct Rendered {
 pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
     Ok(match scene.integrator.name.as_str() {
         "path" => Box::new(PathTracer::new(scene)?),
-        "direct" => Box::new(PathTracer::direct(scene)?),
+        "direct" => Box::new(DirectLighting::new(scene)?),
         "light" => Box::new(LightTracer::new(scene)?),
         "bdpt" | "tridir" => Box::new(Bdpt::for_scene(scene)?),
         other => {

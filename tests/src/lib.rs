@@ -271,29 +271,24 @@ pub fn function_lines(source: &str, after: &str, name: &str) -> usize {
     count
 }
 
-/// The non-blank, non-comment lines of the block that opens on the line
-/// holding `marker`, that line included, through its closing brace.
+/// Non-blank, non-comment lines of `source` from the line holding `start`
+/// up to (not including) the line holding `end`, the first `end` after it.
 ///
 /// # Panics
-/// If `marker` is not found.
+/// If either marker is missing.
 #[must_use]
-pub fn block_lines(source: &str, marker: &str) -> usize {
-    let start = source
-        .find(marker)
-        .unwrap_or_else(|| panic!("{marker} not found"));
-    let line_start = source[..start].rfind('\n').map_or(0, |i| i + 1);
-    let mut depth = 0i32;
-    let mut count = 0;
-    for line in source[line_start..].lines() {
-        let code = line.trim();
-        if !code.is_empty() && !code.starts_with("//") {
-            count += 1;
-        }
-        depth += code.matches(['{', '(']).count() as i32;
-        depth -= code.matches(['}', ')']).count() as i32;
-        if depth <= 0 {
-            break;
-        }
-    }
-    count
+pub fn lines_between(source: &str, start: &str, end: &str) -> usize {
+    let from = source
+        .find(start)
+        .unwrap_or_else(|| panic!("{start} not found"));
+    let from = source[..from].rfind('\n').map_or(0, |i| i + 1);
+    let to = from
+        + source[from..]
+            .find(end)
+            .unwrap_or_else(|| panic!("{end} not found after {start}"));
+    source[from..to]
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("//"))
+        .count()
 }

@@ -86,7 +86,12 @@ impl<'s> Bsdf<'s> {
         Some(Bsdf {
             material,
             two_sided,
-            frame: shading_frame(scene, v, normal),
+            // Only anisotropic lobes care where the tangent points.
+            frame: if anisotropic(material) {
+                shading_frame(scene, v, normal)
+            } else {
+                Frame::from_normal(normal)
+            },
             geometric_normal: v.geometric_normal,
             uv: v.uv,
         })
@@ -210,6 +215,17 @@ fn shading_frame(scene: &Scene, v: &SceneVertex, normal: Vec3) -> Frame {
             n: normal,
         },
         None => Frame::from_normal(normal),
+    }
+}
+
+fn anisotropic(material: &Material) -> bool {
+    match material {
+        Material::Dielectric { roughness, .. }
+        | Material::Conductor { roughness, .. }
+        | Material::Plastic { roughness, .. } => {
+            roughness.is_some_and(|r| r.alpha[0] != r.alpha[1])
+        }
+        _ => false,
     }
 }
 

@@ -1,0 +1,213 @@
+//! Subpaths with the integrand's running products, so that joining a camera
+//! subpath to a light subpath costs one connection's factors, not a pass
+//! over the whole path.
+
+use aether_core::INLINE_VERTICES;
+use glam::{DVec3, Vec3};
+use smallvec::SmallVec;
+
+use crate::bsdf::Bsdf;
+use crate::integrand::{Integrand, geometry_term};
+use crate::vertex::SceneVertex;
+
+/// The end of the path a subpath starts from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum End {
+    /// The camera: the first vertex is on the lens.
+    Camera,
+    /// A light: the first vertex is on an emitter.
+    Light,
+}
+
+/// The vertices of a subpath, their BSDFs, and for each prefix the factors
+/// of f(x̄) that the prefix alone fixes: the geometry terms of its edges and
+/// the BSDF values at its vertices but the last (for a light subpath, the
+/// emission of its first vertex too). The camera's importance is left out,
+/// since it depends on the pixel.
+///
+/// ```
+/// # fn f(scene: &aether_strategies::scene::Scene, camera: &aether_strategies::camera::Camera,
+/// #      lights: &aether_strategies::lights::Lights, eye: &[aether_strategies::vertex::SceneVertex],
+/// #      lamp: aether_strategies::vertex::SceneVertex) {
+/// use aether_strategies::integrand::Integrand;
+/// use aether_strategies::subpath::{End, Subpath};
+/// let f = Integrand::new(scene, camera, lights);
+/// let camera_side = Subpath::of(f, End::Camera, eye);
+/// // f(x̄) of the eye's vertices followed by the lamp, without importance.
+/// let throughput = camera_side.connect_lamp(eye.len(), &lamp);
+/// # }
+/// ```
+#[derive(Clone, Debug)]
+pub struct Subpath<'a> {
+    f: Integrand<'a>,
+    end: End,
+    vertices: SmallVec<[SceneVertex; INLINE_VERTICES]>,
+    bsdfs: SmallVec<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
+    products: SmallVec<[DVec3; INLINE_VERTICES]>,
+}
+
+impl<'a> Subpath<'a> {
+    /// The empty subpath from `end`.
+    #[must_use]
+    pub fn new(f: Integrand<'a>, end: End) -> Self {
+        Subpath {
+            f,
+            end,
+            vertices: SmallVec::new(),
+            bsdfs: SmallVec::new(),
+            products: SmallVec::new(),
+        }
+    }
+
+    /// The subpath from `end` through `vertices`.
+    #[must_use]
+    pub fn of(f: Integrand<'a>, end: End, vertices: &[SceneVertex]) -> Self {
+        let mut s = Subpath::new(f, end);
+        s.extend(vertices);
+        s
+    }
+
+    /// Appends vertices, each sampled from the one before.
+    pub fn extend(&mut self, vertices: &[SceneVertex]) {
+        for v in vertices {
+            self.push(*v);
+        }
+    }
+
+    /// Number of vertices.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.vertices.len()
+    }
+
+    /// True if there are no vertices.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.vertices.is_empty()
+    }
+
+    /// The vertices, from the subpath's end.
+    #[must_use]
+    pub fn vertices(&self) -> &[SceneVertex] {
+        &self.vertices
+    }
+
+    /// The BSDF at vertex `i`, if it lies on a surface.
+    #[must_use]
+    pub fn bsdf(&self, i: usize) -> Option<&Bsdf<'a>> {
+        self.bsdfs[i].as_ref()
+    }
+
+    /// True if a connection can end at vertex `i`: it is not on a purely
+    /// specular surface.
+    #[must_use]
+    pub fn connectible(&self, i: usize) -> bool {
+        self.bsdfs[i].is_none_or(|b| !b.is_dirac())
+    }
+
+    /// Keeps the first `len` vertices.
+    pub fn truncate(&mut self, len: usize) {
+        self.vertices.truncate(len);
+        self.bsdfs.truncate(len);
+        self.products.truncate(len);
+    }
+
+    /// Appends a vertex sampled from the last one (its edge needs no
+    /// visibility test).
+    pub fn push(&mut self, v: SceneVertex) {
+        let n = self.vertices.len();
+        let product = match n {
+            0 => DVec3::ONE,
+            _ => {
+                let last = &self.vertices[n - 1];
+                let at_last = self.factor_at(n - 1, &v);
+                self.products[n - 1] * at_last * f64::from(geometry_term(last, &v))
+            }
+        };
+        self.bsdfs.push(Bsdf::at(self.f.scene(), &v));
+        self.vertices.push(v);
+        self.products.push(product);
+    }
+
+    /// The factor of f at vertex `i` when `next` follows it on the way away
+    /// from this subpath's end: the BSDF value, or at a light's first vertex
+    /// its emission toward `next`.
+    fn factor_at(&self, i: usize, next: &SceneVertex) -> DVec3 {
+        let v = &self.vertices[i];
+        let Some(out) = v.direction_to(next) else {
+            return DVec3::ZERO;
+        };
+        if i == 0 {
+            return match self.end {
+                End::Camera => DVec3::ONE,
+                End::Light => self.f.emitted(v, out).as_dvec3(),
+            };
+        }
+        let (Some(bsdf), Some(back)) = (&self.bsdfs[i], v.direction_to(&self.vertices[i - 1]))
+        else {
+            return DVec3::ZERO;
+        };
+        let value = match self.end {
+            End::Camera => bsdf.eval(out, back),
+            End::Light => bsdf.eval(back, out),
+        };
+        value.as_dvec3()
+    }
+
+    /// f(x̄) without importance for the camera subpath's first `s` vertices
+    /// when the last of them is on a light: zero otherwise.
+    #[must_use]
+    pub fn emitted(&self, s: usize) -> DVec3 {
+        if s < 2 || self.end != End::Camera {
+            return DVec3::ZERO;
+        }
+        let v = &self.vertices[s - 1];
+        let Some(out) = v.direction_to(&self.vertices[s - 2]) else {
+            return DVec3::ZERO;
+        };
+        let radiance: Vec3 = self.f.emitted(v, out);
+        self.products[s - 1] * radiance.as_dvec3()
+    }
+
+    /// f(x̄) without importance for this camera subpath's first `s`
+    /// vertices joined to `light`'s first `t` (s, t ≥ 1), the connecting
+    /// edge tested for visibility.
+    #[must_use]
+    pub fn connect(&self, s: usize, light: &Subpath<'_>, t: usize) -> DVec3 {
+        if t == 0 || light.end != End::Light {
+            return DVec3::ZERO;
+        }
+        let l = &light.vertices[t - 1];
+        let c = &self.vertices[s.max(1) - 1];
+        self.join(s, l, light.factor_at(t - 1, c) * light.products[t - 1])
+    }
+
+    /// f(x̄) without importance for this camera subpath's first `s`
+    /// vertices followed by `lamp`, a point on a light (as sampled by direct
+    /// emitter sampling), the edge to it tested for visibility.
+    #[must_use]
+    pub fn connect_lamp(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
+        let c = &self.vertices[s.max(1) - 1];
+        let radiance = lamp
+            .direction_to(c)
+            .map_or(Vec3::ZERO, |d| self.f.emitted(lamp, d));
+        self.join(s, lamp, radiance.as_dvec3())
+    }
+
+    /// f(x̄) for the first `s` vertices joined to a light-side vertex `l`
+    /// whose factors of f beyond the edge multiply to `beyond`.
+    fn join(&self, s: usize, l: &SceneVertex, beyond: DVec3) -> DVec3 {
+        if s == 0 || self.end != End::Camera || beyond == DVec3::ZERO {
+            return DVec3::ZERO;
+        }
+        let c = &self.vertices[s - 1];
+        let f = self.products[s - 1]
+            * self.factor_at(s - 1, l)
+            * f64::from(geometry_term(c, l))
+            * beyond;
+        if f == DVec3::ZERO || !self.f.visible(c, l) {
+            return DVec3::ZERO;
+        }
+        f
+    }
+}

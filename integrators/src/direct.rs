@@ -1,0 +1,80 @@
+//! Direct lighting: at the first surface the camera sees, one light sample
+//! and one BSDF sample, each weighed by MIS against the other.
+
+use aether_core::{DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef};
+use aether_strategies::bsdf::Transport;
+use aether_strategies::camera::Camera;
+use aether_strategies::integrand::Integrand;
+use aether_strategies::lights::Lights;
+use aether_strategies::scattering::{BsdfSampling, Roulette};
+use aether_strategies::scene::Scene;
+use aether_strategies::subpath::{End, Subpath};
+use glam::Vec3;
+
+use crate::estimator::{Estimator, Splats};
+use crate::path::weight;
+
+/// Direct lighting with MIS between light and BSDF sampling (paths of at
+/// most two edges: lights seen directly and lights reflected once).
+///
+/// ```no_run
+/// # fn f(scene: &aether_strategies::scene::Scene) -> Result<(), String> {
+/// use integrators::estimator::Estimator;
+/// let direct = integrators::direct::DirectLighting::new(scene)?;
+/// let radiance = direct.sample([3, 4], &mut aether_core::Pcg32::new(0, 0), &mut Vec::new());
+/// # Ok(()) }
+/// ```
+#[derive(Debug)]
+pub struct DirectLighting<'s> {
+    scene: &'s Scene,
+    camera: Camera,
+    lights: Option<Lights<'s>>,
+    heuristic: Heuristic,
+}
+
+impl<'s> DirectLighting<'s> {
+    /// Direct lighting of `scene`, with the power heuristic.
+    ///
+    /// # Errors
+    /// If the camera cannot be built (an unknown pixel filter).
+    pub fn new(scene: &'s Scene) -> Result<Self, String> {
+        Ok(DirectLighting {
+            scene,
+            camera: Camera::new(scene)?,
+            lights: Lights::new(scene),
+            heuristic: Heuristic::POWER,
+        })
+    }
+}
+
+impl Estimator for DirectLighting<'_> {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, _splats: &mut Splats) -> Vec3 {
+        let Some(lights) = &self.lights else {
+            return Vec3::ZERO;
+        };
+        let lens = self.camera.position();
+        let look = self.camera.direction(self.scene, pixel);
+        let bsdf = BsdfSampling::new(self.scene, Transport::Radiance, Roulette::NEVER);
+        let (direct, h) = (lights.direct(), self.heuristic);
+        let f = Integrand::new(self.scene, &self.camera, lights);
+        let camera = [&lens as &dyn DynStrategy<_>, &look, &bsdf].map(StrategyRef::One);
+        let mut path = RandomSequence::new();
+        if !path.append(&lens).append_sample(&look, rng) {
+            return Vec3::ZERO;
+        }
+        let eye = Subpath::of(f, End::Camera, path.vertices());
+        let importance = f.importance(pixel, path.vertices());
+        // What the camera sees first has one technique.
+        let mut radiance = eye.emitted(2) * weight(&path, &camera, &direct, 0, h);
+        if eye.connectible(1) && path.append_sample(&direct, rng) {
+            let lit = eye.connect_lamp(2, &path.vertices()[2]);
+            radiance += lit * weight(&path, &camera, &direct, 1, h);
+        }
+        path.truncate(2);
+        if path.append_sample(&bsdf, rng) {
+            let emitted = Subpath::of(f, End::Camera, path.vertices()).emitted(3);
+            radiance += emitted * weight(&path, &camera, &direct, 0, h);
+        }
+        (radiance * importance).as_vec3()
+    }
+}
