@@ -182,6 +182,70 @@ pub fn render_with(
     })
 }
 
+/// What [`render_passes`] produced.
+#[derive(Debug)]
+pub struct Passes {
+    /// The mean of the passes' images, row by row.
+    pub image: Vec<[f32; 3]>,
+    /// Passes rendered.
+    pub passes: u32,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Camera samples taken.
+    pub samples: u64,
+    /// Rays cast.
+    pub rays: u64,
+}
+
+/// Renders whole passes of `settings.spp` samples per pixel, each from its
+/// own seed, until `budget` has passed (at least one pass, and the pass
+/// under way is finished), and averages them: the image of an equal-time
+/// comparison, in which every pixel has the same number of samples.
+///
+/// # Errors
+/// If the worker threads cannot start.
+pub fn render_passes(
+    scene: &Scene,
+    estimator: &dyn Estimator,
+    settings: &Settings,
+    budget: Duration,
+    stop: &AtomicBool,
+) -> Result<Passes, String> {
+    let start = Instant::now();
+    let mut sum = vec![[0.0f64; 3]; scene.film.width as usize * scene.film.height as usize];
+    let mut out = Passes {
+        image: Vec::new(),
+        passes: 0,
+        seconds: 0.0,
+        samples: 0,
+        rays: 0,
+    };
+    while out.passes == 0 || (start.elapsed() < budget && !stop.load(Ordering::Relaxed)) {
+        let pass = Settings {
+            // Distant, distinct seeds: each pass draws from fresh streams.
+            seed: settings
+                .seed
+                .wrapping_add(u64::from(out.passes).wrapping_mul(0x9e37_79b9_7f4a_7c15)),
+            time_limit: None,
+            progress: false,
+            ..settings.clone()
+        };
+        let r = render_with(scene, estimator, &pass, stop)?;
+        for (s, c) in sum.iter_mut().zip(r.film.image()) {
+            for k in 0..3 {
+                s[k] += f64::from(c[k]);
+            }
+        }
+        out.passes += 1;
+        out.samples += r.samples;
+        out.rays += r.rays;
+    }
+    let n = f64::from(out.passes);
+    out.image = sum.iter().map(|s| s.map(|v| (v / n) as f32)).collect();
+    out.seconds = start.elapsed().as_secs_f64();
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -214,6 +278,30 @@ mod tests {
             .sum::<f64>()
             / (3.0 * 1024.0);
         assert!(mean > 0.05 && mean.is_finite(), "{mean}");
+    }
+
+    #[test]
+    fn passes_average_to_the_image_of_their_samples() {
+        let scene = cornell_box(16, 16, 1);
+        let stop = AtomicBool::new(false);
+        let s = Settings {
+            spp: 2,
+            seed: 3,
+            time_limit: None,
+            threads: Some(2),
+            progress: false,
+        };
+        let path = PathTracer::new(&scene).unwrap();
+        let r = render_passes(&scene, &path, &s, Duration::ZERO, &stop).unwrap();
+        assert_eq!((r.passes, r.samples), (1, 16 * 16 * 2));
+        let one = render_with(&scene, &path, &s, &stop).unwrap();
+        assert_eq!(
+            r.image,
+            one.film.image(),
+            "one pass is the render of its seed"
+        );
+        let r = render_passes(&scene, &path, &s, Duration::from_millis(200), &stop).unwrap();
+        assert!(r.passes > 1 && r.image.iter().all(|c| is_valid(*c)));
     }
 
     #[test]

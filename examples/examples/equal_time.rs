@@ -1,0 +1,206 @@
+//! Equal-time comparison of path tracing, BDPT and tridirectional path
+//! tracing (Anderson et al. 2017, figure of the keyhole box): each renders
+//! whole passes for the same wall-clock time, and its RMSE against a long
+//! BDPT reference is printed. BDPT should beat path tracing on Veach's
+//! bidirectional scene and on the keyhole box; tridirectional tracing, which
+//! samples segments through the keyhole, should beat BDPT on the box.
+//!
+//! ```text
+//! cargo run --release -p examples --example equal_time -- \
+//!     [--seconds 15] [--reference-seconds 240] [--scale 0.25] [--cache DIR]
+//! ```
+//!
+//! References are written to the cache folder (default
+//! `target/equal-time`) and reused when present.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use aether_strategies::scene::Scene;
+use integrators::output::{Comparison, read_exr, write_exr};
+use integrators::render::{Settings, estimator, render_passes};
+
+/// A scene of the comparison: file, and the keyhole it lacks.
+struct Case {
+    name: &'static str,
+    file: &'static str,
+    portal: Option<(&'static str, usize)>,
+}
+
+const CASES: [Case; 2] = [
+    Case {
+        name: "veach_bidir",
+        file: "veach_bidir/bidir-bdpt.xml",
+        portal: None,
+    },
+    Case {
+        name: "keyhole box",
+        file: "cbox/cbox_tridir.xml",
+        // Aether hard-codes the hole; it is shape 0 of the box's mesh file.
+        portal: Some(("cbox/cornell_box_keyhole.serialized", 0)),
+    },
+];
+
+struct Options {
+    seconds: f64,
+    reference_seconds: f64,
+    scale: f64,
+    cache: PathBuf,
+}
+
+fn options() -> Result<Options, String> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut o = Options {
+        seconds: 15.0,
+        reference_seconds: 240.0,
+        scale: 0.25,
+        cache: root.join("target/equal-time"),
+    };
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    for pair in args.chunks(2) {
+        let [flag, value] = pair else {
+            return Err(format!("{} needs a value", pair[0]));
+        };
+        let number = || match value.parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+            _ => Err(format!("{flag} needs a positive number, not '{value}'")),
+        };
+        match flag.as_str() {
+            "--seconds" => o.seconds = number()?,
+            "--reference-seconds" => o.reference_seconds = number()?,
+            "--scale" => o.scale = number()?.min(1.0),
+            "--cache" => o.cache = PathBuf::from(value),
+            _ => return Err(format!("unknown option {flag}")),
+        }
+    }
+    Ok(o)
+}
+
+fn load(case: &Case, scale: f64) -> Result<Scene, String> {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/aether");
+    let mut scene =
+        Scene::load(&scenes.join(case.file), &HashMap::new()).map_err(|e| e.to_string())?;
+    if let Some((mesh, index)) = case.portal {
+        scene.add_portal(&scenes.join(mesh), index)?;
+    }
+    // Aether's integrators stop at depth 6 where a scene sets no limit.
+    if scene.integrator.max_depth < 0 {
+        scene.integrator.max_depth = 6;
+    }
+    let film = &mut scene.film;
+    film.width = ((f64::from(film.width) * scale).round() as u32).max(1);
+    film.height = ((f64::from(film.height) * scale).round() as u32).max(1);
+    film.crop = [0, 0, film.width, film.height];
+    Ok(scene)
+}
+
+/// Renders `scene` with `integrator` for `seconds`, from the random
+/// streams that `seed` picks.
+fn run(
+    scene: &mut Scene,
+    integrator: &str,
+    seconds: f64,
+    seed: u64,
+) -> Result<integrators::render::Passes, String> {
+    scene.integrator.name = integrator.into();
+    let settings = Settings {
+        spp: 1,
+        seed,
+        time_limit: None,
+        threads: None,
+        progress: false,
+    };
+    let stop = AtomicBool::new(false);
+    render_passes(
+        scene,
+        estimator(scene)?.as_ref(),
+        &settings,
+        Duration::from_secs_f64(seconds),
+        &stop,
+    )
+}
+
+fn compare(case: &Case, o: &Options) -> Result<(), String> {
+    let mut scene = load(case, o.scale)?;
+    let (w, h) = (scene.film.width, scene.film.height);
+    let depth = scene.integrator.max_depth;
+    let cached = o.cache.join(format!(
+        "{}-{w}x{h}-depth{depth}-{}s.exr",
+        case.name.replace(' ', "_"),
+        o.reference_seconds
+    ));
+    println!(
+        "\n{} ({w}×{h}, max depth {depth}), {} s each",
+        case.name, o.seconds
+    );
+    let reference = match read_exr(&cached) {
+        Ok((rw, rh, image)) if (rw, rh) == (w, h) => {
+            println!(
+                "reference: BDPT, {} s, from {}",
+                o.reference_seconds,
+                cached.display()
+            );
+            image
+        }
+        _ => {
+            println!(
+                "reference: rendering BDPT for {} s ...",
+                o.reference_seconds
+            );
+            // Its own streams: the compared BDPT render must not repeat its passes.
+            let r = run(&mut scene, "bdpt", o.reference_seconds, 1_000_003)?;
+            std::fs::create_dir_all(&o.cache).map_err(|e| format!("{}: {e}", o.cache.display()))?;
+            write_exr(&cached, w, h, &r.image, r.passes, r.seconds)?;
+            println!(
+                "reference: {} spp, written to {}",
+                r.passes,
+                cached.display()
+            );
+            r.image
+        }
+    };
+    println!(
+        "{:<8} {:>6} {:>8} {:>11} {:>9} {:>11} {:>12}",
+        "", "spp", "seconds", "samples/s", "mean Δ", "RMSE", "RMSE at time"
+    );
+    let mut at_time = HashMap::new();
+    for integrator in ["path", "bdpt", "tridir"] {
+        if integrator == "tridir" && scene.portals.is_empty() {
+            println!("{integrator:<8} (the scene has no portal)");
+            continue;
+        }
+        let r = run(&mut scene, integrator, o.seconds, 17)?;
+        let c = Comparison::of(&r.image, &reference).ok_or("the image sizes differ")?;
+        // Passes end past the budget: scale the RMSE to the budget (variance ∝ 1/time).
+        let rmse = c.rmse * (r.seconds / o.seconds).sqrt();
+        let rate = r.samples as f64 / r.seconds;
+        println!(
+            "{integrator:<8} {:>6} {:>8.1} {rate:>11.0} {:>+8.2}% {:>11.5} {rmse:>12.5}",
+            r.passes,
+            r.seconds,
+            100.0 * c.relative_difference(),
+            c.rmse
+        );
+        at_time.insert(integrator, rmse);
+    }
+    let verdict = |a: &str, b: &str| match (at_time.get(a), at_time.get(b)) {
+        (Some(x), Some(y)) => println!(
+            "{a} beats {b}: {} ({x:.5} vs {y:.5})",
+            if x < y { "yes" } else { "no" }
+        ),
+        _ => {}
+    };
+    verdict("bdpt", "path");
+    verdict("tridir", "bdpt");
+    Ok(())
+}
+
+fn main() {
+    let result = options().and_then(|o| CASES.iter().try_for_each(|case| compare(case, &o)));
+    if let Err(e) = result {
+        eprintln!("equal_time: {e}");
+        std::process::exit(1);
+    }
+}
