@@ -335,15 +335,20 @@ pub struct Split<'s, V> {
     pub camera: usize,
     /// Steps between the camera and light subpaths.
     pub middle: SmallVec<[(StrategyRef<'s, V>, bool); 2]>,
+    /// Samples this technique takes for each sample of the others (Veach's
+    /// nᵢ; MIS weighs nᵢ pᵢ): a light path that splats to any pixel is
+    /// one of as many as there are pixels, each pixel's camera path one.
+    pub samples: f64,
 }
 
 impl<'s, V> Split<'s, V> {
-    /// `camera` vertices from the camera, then the steps `middle`.
+    /// `camera` vertices from the camera, then the steps `middle`, one sample.
     #[must_use]
     pub fn new(camera: usize, middle: &[(StrategyRef<'s, V>, bool)]) -> Self {
         Split {
             camera,
             middle: middle.iter().copied().collect(),
+            samples: 1.0,
         }
     }
 }
@@ -355,27 +360,33 @@ impl<'s, V> Split<'s, V> {
     /// vertex when the light side would have one; then, with a `portal`
     /// pair strategy, for k = 1..n − 2, k from the camera, the portal's two
     /// and the rest from the light (index n + k − 1), again with `direct`
-    /// for a single light vertex.
+    /// for a single light vertex. The techniques with one camera vertex
+    /// (splatted, not sampled per pixel) take `splats` samples each.
     ///
     /// ```
     /// use aether_core::Split;
     /// use aether_core::testing::{LightSample, TestScene, TestVertex};
     /// let scene = TestScene::open_box();
     /// let light = LightSample::new(&scene);
-    /// let splits = Split::<TestVertex>::bidirectional(4, Some((&light as &dyn aether_core::DynStrategy<_>).into()), None);
+    /// let direct = Some((&light as &dyn aether_core::DynStrategy<_>).into());
+    /// let splits = Split::<TestVertex>::bidirectional(4, direct, None, 64.0 * 64.0);
     /// assert_eq!(splits.len(), 4);
     /// assert_eq!((splits[2].camera, splits[2].middle.len()), (3, 1)); // direct light sampling
+    /// assert_eq!(splits[0].samples, 4096.0); // light tracing, to any of 64 × 64 pixels
     /// ```
     #[must_use]
     pub fn bidirectional(
         n: usize,
         direct: Option<StrategyRef<'s, V>>,
         portal: Option<StrategyRef<'s, V>>,
+        splats: f64,
     ) -> SmallVec<[Self; 24]> {
         let direct = |t: usize| direct.filter(|_| t == 1).map(|d| (d, false));
+        let samples = |camera: usize| if camera <= 1 { splats } else { 1.0 };
         let bidirectional = (1..=n).map(|s| Split {
             camera: s,
             middle: direct(n - s).into_iter().collect(),
+            samples: samples(s),
         });
         let through_portal = (1..n.saturating_sub(1)).filter_map(|k| {
             Some(Split {
@@ -384,6 +395,7 @@ impl<'s, V> Split<'s, V> {
                     .into_iter()
                     .chain(direct(n - k - 2))
                     .collect(),
+                samples: samples(k),
             })
         });
         bidirectional.chain(through_portal).collect()
@@ -419,7 +431,23 @@ pub fn weight_of_split<'s, V: Vertex>(
         return (0.0, PathDensity::ONE.times(Density::zero(Measure::Area)));
     }
     let densities = split_densities(path, camera, light, splits, cache);
-    (heuristic.weight(&densities, own), densities[own])
+    (
+        heuristic.weight(&counted(&densities, splits), own),
+        densities[own],
+    )
+}
+
+/// Each technique's density times its number of samples, as MIS weighs them.
+fn counted<V>(densities: &[PathDensity], splits: &[Split<'_, V>]) -> SmallVec<[PathDensity; 24]> {
+    let times = |p: &PathDensity, s: &Split<'_, V>| match s.samples {
+        1.0 => *p,
+        n => p.times(Density::new(n, Measure::Discrete)),
+    };
+    densities
+        .iter()
+        .zip(splits)
+        .map(|(p, s)| times(p, s))
+        .collect()
 }
 
 /// As [`weight_of_split`] once for each strategy in `variants` taking the
@@ -472,7 +500,10 @@ pub fn weights_of_split_variants<'s, V: Vertex>(
                     densities[k]
                 };
             }
-            (heuristic.weight(&scaled, own), scaled[own])
+            (
+                heuristic.weight(&counted(&scaled, splits), own),
+                scaled[own],
+            )
         })
         .collect()
 }

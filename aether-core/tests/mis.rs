@@ -360,9 +360,9 @@ fn weights_of_splits_match_combine_on_bdpt_candidates() {
             // Each candidate's split: its leading camera-side vertices.
             let splits: Vec<Split<'_, TestVertex>> = out
                 .iter()
-                .map(|c| Split {
-                    camera: (0..c.len()).take_while(|&i| !c.is_reversed(i)).count(),
-                    middle: smallvec::SmallVec::new(),
+                .map(|c| {
+                    let camera = (0..c.len()).take_while(|&i| !c.is_reversed(i)).count();
+                    Split::new(camera, &[])
                 })
                 .collect();
             let expected = combine(&out, Heuristic::POWER);

@@ -3,7 +3,9 @@
 //! on either side.
 
 use aether_core::primitives::{CosineHemisphere, DiscreteDistribution, UniformTriangle};
-use aether_core::{Distribution, Frame, InFrame, PairStrategy, Prefix, Segment, Select, Step};
+use aether_core::{
+    Distribution, Either, Frame, InFrame, PairStrategy, Prefix, Segment, Select, Step,
+};
 use glam::Vec3;
 
 use crate::scene::Scene;
@@ -72,10 +74,19 @@ impl<'s> PortalSegment<'s> {
     }
 }
 
+impl PortalSegment<'_> {
+    /// Which side of the portal's plane `v` is on: 1 in front (along the
+    /// normal), 0 behind. After a vertex, segments start on its side.
+    #[must_use]
+    pub fn side(&self, v: &SceneVertex) -> usize {
+        usize::from((v.position - self.origin).dot(self.normal) > 0.0)
+    }
+}
+
 impl PairStrategy<SceneVertex> for PortalSegment<'_> {
     fn distribution<'a>(
         &'a self,
-        _prefix: Prefix<'a, SceneVertex>,
+        prefix: Prefix<'a, SceneVertex>,
     ) -> impl Distribution<Value = Step<(SceneVertex, SceneVertex)>> + 'a {
         let points = Select::new(
             &self.by_area,
@@ -92,22 +103,29 @@ impl PairStrategy<SceneVertex> for PortalSegment<'_> {
         );
         // Lines cross the opening either way, so the direction is cosine
         // distributed about either side of it; its side names the choice.
+        // After a vertex, the line leaves the vertex's side, so that the
+        // segment's first vertex (behind the line) is on that side and the
+        // path can join it.
         let side = [
             Frame::from_normal(self.normal),
             Frame::from_normal(-self.normal),
         ];
         let n = self.normal;
-        let directions = Select::new(
-            &self.sides,
-            2,
-            move |i| InFrame::new(side[i], CosineHemisphere),
-            move |w: &Vec3| Some(usize::from(w.dot(n) < 0.0)),
-        );
+        let after = prefix.last().filter(|v| !v.is_at_infinity());
+        let directions = match after.map(|v| self.side(v)) {
+            Some(i) => Either::Left(InFrame::new(side[i], CosineHemisphere)),
+            None => Either::Right(Select::new(
+                &self.sides,
+                2,
+                move |i| InFrame::new(side[i], CosineHemisphere),
+                move |w: &Vec3| Some(usize::from(w.dot(n) < 0.0)),
+            )),
+        };
         let at = |y| SceneVertex::point(y, None);
         Segment::new(points, directions, self.origin, self.normal, at, self.scene)
     }
     fn memory(&self) -> usize {
-        0
+        1
     }
     fn depth_class(&self, _prefix_len: usize) -> usize {
         0

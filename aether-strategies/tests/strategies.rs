@@ -382,6 +382,14 @@ fn the_portal_segment_passes_the_pointwise_checks() {
         .unwrap_or_else(|f| panic!("portal segment: {f}"));
     println!("portal segment: {report}");
     assert!(report.jacobian_checked > 150, "{report}");
+    // After a vertex, lines leave its side of the opening: checked from both sides.
+    for y in [-0.5, 0.5] {
+        let after = [SceneVertex::point(Vec3::new(0.0, y, 0.1), None)];
+        let d = segment.distribution(Prefix::forward(&after));
+        let report =
+            check_pointwise(&d, &config()).unwrap_or_else(|f| panic!("after y = {y}: {f}"));
+        assert!(report.jacobian_checked > 150, "{report}");
+    }
 }
 
 #[test]

@@ -12,8 +12,8 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, PathDensity, Pcg32, RandomSequence, StepKind,
-    StrategyRef, weights_of_split_variants,
+    DensityCache, DynStrategy, Heuristic, PathDensity, Pcg32, RandomSequence, StrategyRef,
+    weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -205,17 +205,18 @@ impl Estimator for Bdpt<'_> {
         let Some(portal) = &self.portal else {
             return radiance.as_vec3();
         };
-        let mut head = RandomSequence::new();
+        // One line through the portal for each side the camera vertices are on.
+        let mut lines = [None, None];
         for k in 1..=cam.len().min(max.saturating_sub(2)) {
-            head.clear();
-            let segment = head
-                .extend_from(&cam, 0..k, false)
-                .append_pair(portal)
-                .sample(run.rng);
-            if segment == StepKind::Vertex && f.visible(&cam.vertices()[k - 1], &head.vertices()[k])
-            {
-                let mut side = Subpath::of(f, End::Camera, &cam.vertices()[..k]);
-                side.extend(&head.vertices()[k..]);
+            let c = &cam.vertices()[k - 1];
+            let line = lines[portal.side(c)].get_or_insert_with(|| {
+                let mut line = RandomSequence::given([*c]);
+                line.append_pair(portal).sample(run.rng);
+                line
+            });
+            if line.is_complete() && f.visible(c, &line.vertices()[1]) {
+                let head = cam.slice(0..k).concat(&line.slice(1..3));
+                let side = Subpath::of(f, End::Camera, head.vertices());
                 radiance += self.join(&mut run, &head, (&side, k + 2), ends, Split::Portal(k));
             }
         }
@@ -326,7 +327,10 @@ impl<'s> Bdpt<'s> {
     ) -> SmallVec<[(f64, f64); 16]> {
         let n = path.len();
         let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p as _));
-        let splits = aether_core::Split::bidirectional(n, Some(one(&kit.direct)), portal);
+        // Each camera sample also traces a light path, which may splat anywhere.
+        let [w, h] = self.camera.size();
+        let splats = f64::from(w) * f64::from(h);
+        let splits = aether_core::Split::bidirectional(n, Some(one(&kit.direct)), portal, splats);
         let index = match own {
             Split::Bdpt(s) => s - 1,
             Split::Portal(k) => n + k - 1,

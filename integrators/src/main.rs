@@ -102,10 +102,6 @@ struct RenderArgs {
     /// Scene parameter, as name=value (overrides the file's `<default>`).
     #[arg(short = 'D', value_parser = parse_param)]
     define: Vec<(String, String)>,
-    /// Declare a portal the scene does not: an OBJ file, or FILE:INDEX for
-    /// shape INDEX of a Mitsuba .serialized file (repeatable).
-    #[arg(long, value_parser = parse_portal)]
-    portal: Vec<(PathBuf, usize)>,
     /// Also write BDPT's (s, t) technique images, weighted and unweighted, into this folder.
     #[arg(long)]
     techniques: Option<PathBuf>,
@@ -115,16 +111,6 @@ struct RenderArgs {
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
-}
-
-fn parse_portal(s: &str) -> Result<(PathBuf, usize), String> {
-    match s.rsplit_once(':') {
-        Some((file, index)) if !index.is_empty() && index.bytes().all(|b| b.is_ascii_digit()) => {
-            let index = index.parse().map_err(|e| format!("'{index}': {e}"))?;
-            Ok((PathBuf::from(file), index))
-        }
-        _ => Ok((PathBuf::from(s), 0)),
-    }
 }
 
 fn parse_param(s: &str) -> Result<(String, String), String> {
@@ -139,9 +125,6 @@ fn run(args: RenderArgs) -> Result<(), String> {
         Some(path) => Scene::load(path, &params).map_err(|e| e.to_string())?,
         None => cornell_box(args.size, args.size, 16),
     };
-    for (file, index) in &args.portal {
-        scene.add_portal(file, *index)?;
-    }
     for w in &scene.warnings {
         eprintln!("{w}");
     }

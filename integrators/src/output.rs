@@ -122,6 +122,9 @@ pub struct Comparison {
     pub reference_mean: f64,
     /// Root-mean-square difference over pixels and channels.
     pub rmse: f64,
+    /// Relative mean squared error: the mean of (x − r)² / (r² + 0.01) over
+    /// pixels and channels, which bright pixels do not dominate.
+    pub rel_mse: f64,
 }
 
 impl Comparison {
@@ -132,19 +135,21 @@ impl Comparison {
             return None;
         }
         let n = 3.0 * image.len() as f64;
-        let (mut a, mut b, mut d2) = (0.0, 0.0, 0.0);
+        let (mut a, mut b, mut d2, mut rel) = (0.0, 0.0, 0.0, 0.0);
         for (p, q) in image.iter().zip(reference) {
             for k in 0..3 {
                 let (x, y) = (f64::from(p[k]), f64::from(q[k]));
                 a += x;
                 b += y;
                 d2 += (x - y) * (x - y);
+                rel += (x - y) * (x - y) / (y * y + 0.01);
             }
         }
         Some(Comparison {
             mean: a / n,
             reference_mean: b / n,
             rmse: (d2 / n).sqrt(),
+            rel_mse: rel / n,
         })
     }
 

@@ -70,7 +70,7 @@ fn the_path_tracer_renders_a_furnace_at_l_over_one_minus_rho() {
 
 #[test]
 fn bdpt_renders_a_furnace_at_l_over_one_minus_rho() {
-    assert_furnace("bdpt", 48);
+    assert_furnace("bdpt", 64);
 }
 
 #[test]
@@ -80,7 +80,7 @@ fn the_light_tracer_renders_a_furnace_at_l_over_one_minus_rho() {
 
 #[test]
 fn tridirectional_tracing_renders_a_furnace_at_l_over_one_minus_rho() {
-    assert_furnace("tridir", 24);
+    assert_furnace("tridir", 40);
 }
 
 #[test]

@@ -349,31 +349,6 @@ impl Scene {
     }
 }
 
-impl Scene {
-    /// Declares a portal the scene file does not: the mesh of an OBJ file,
-    /// or of shape `shape_index` of a Mitsuba `.serialized` file, in world
-    /// space. Aether hard-codes its keyholes; this names them instead.
-    ///
-    /// # Errors
-    /// If the file cannot be read as a mesh, or the mesh has no area or
-    /// invalid vertices; the message names the file.
-    pub fn add_portal(&mut self, file: &Path, shape_index: usize) -> Result<(), String> {
-        let serialized = file.extension().is_some_and(|e| e == "serialized");
-        let mesh = if serialized {
-            crate::mesh::load_serialized(file, shape_index)
-        } else {
-            crate::mesh::load_obj(file)
-        }
-        .and_then(|m| m.validate(file).map(|()| m))
-        .map_err(|e| format!("portal {}: {e}", file.display()))?;
-        if mesh.area() <= 0.0 {
-            return Err(format!("portal {}: the mesh has no area", file.display()));
-        }
-        self.portals.push(mesh);
-        Ok(())
-    }
-}
-
 /// Provisional shape indices of spheres, while meshes are still being read.
 const SPHERE_BASE: usize = usize::MAX / 2;
 
