@@ -355,13 +355,15 @@ impl<'s, V> Split<'s, V> {
 
 impl<'s, V> Split<'s, V> {
     /// Every technique of a bidirectional sampler for paths of `n`
-    /// vertices: first, for s = 1..=n, s vertices from the camera and the
-    /// rest from the light (index s − 1), with `direct` sampling the last
+    /// vertices: first, for s = 0..=n, s vertices from the camera and the
+    /// rest from the light (index s), with `direct` sampling the last
     /// vertex when the light side would have one; then, with a `portal`
     /// pair strategy, for k = 1..n − 2, k from the camera, the portal's two
-    /// and the rest from the light (index n + k − 1), again with `direct`
-    /// for a single light vertex. The techniques with one camera vertex
-    /// (splatted, not sampled per pixel) take `splats` samples each.
+    /// and the rest from the light (index n + k), again with `direct` for a
+    /// single light vertex. The techniques with at most one camera vertex
+    /// (splatted, not sampled per pixel) take `splats` samples each; s = 0,
+    /// light paths that reach the camera, is sampled only `through_lens`
+    /// (a pinhole cannot be hit), and takes no samples otherwise.
     ///
     /// ```
     /// use aether_core::Split;
@@ -369,10 +371,11 @@ impl<'s, V> Split<'s, V> {
     /// let scene = TestScene::open_box();
     /// let light = LightSample::new(&scene);
     /// let direct = Some((&light as &dyn aether_core::DynStrategy<_>).into());
-    /// let splits = Split::<TestVertex>::bidirectional(4, direct, None, 64.0 * 64.0);
-    /// assert_eq!(splits.len(), 4);
-    /// assert_eq!((splits[2].camera, splits[2].middle.len()), (3, 1)); // direct light sampling
-    /// assert_eq!(splits[0].samples, 4096.0); // light tracing, to any of 64 × 64 pixels
+    /// let splits = Split::<TestVertex>::bidirectional(4, direct, None, 64.0 * 64.0, false);
+    /// assert_eq!(splits.len(), 5);
+    /// assert_eq!((splits[3].camera, splits[3].middle.len()), (3, 1)); // direct light sampling
+    /// assert_eq!(splits[1].samples, 4096.0); // light tracing, to any of 64 × 64 pixels
+    /// assert_eq!(splits[0].samples, 0.0); // no light path hits a pinhole
     /// ```
     #[must_use]
     pub fn bidirectional(
@@ -380,10 +383,15 @@ impl<'s, V> Split<'s, V> {
         direct: Option<StrategyRef<'s, V>>,
         portal: Option<StrategyRef<'s, V>>,
         splats: f64,
+        through_lens: bool,
     ) -> SmallVec<[Self; 24]> {
         let direct = |t: usize| direct.filter(|_| t == 1).map(|d| (d, false));
-        let samples = |camera: usize| if camera <= 1 { splats } else { 1.0 };
-        let bidirectional = (1..=n).map(|s| Split {
+        let samples = |camera: usize| match camera {
+            0 if !through_lens => 0.0,
+            0 | 1 => splats,
+            _ => 1.0,
+        };
+        let bidirectional = (0..=n).map(|s| Split {
             camera: s,
             middle: direct(n - s).into_iter().collect(),
             samples: samples(s),

@@ -38,6 +38,19 @@ pub fn geometry_term(a: &SceneVertex, b: &SceneVertex) -> f32 {
 /// may lie at infinity; two vertices at infinity never see each other).
 #[must_use]
 pub fn visible(scene: &Scene, a: &SceneVertex, b: &SceneVertex) -> bool {
+    // A thin lens's aperture stops what crosses it, except edges from it.
+    let on_lens = matches!(a.site, Site::Lens) || matches!(b.site, Site::Lens);
+    if let Some(lens) = scene.aperture().filter(|_| !on_lens) {
+        let (from, to) = if a.is_at_infinity() { (b, a) } else { (a, b) };
+        let far = match to.is_at_infinity() {
+            true => f32::INFINITY,
+            false => (to.position - from.position).length(),
+        };
+        let crosses = |d| lens.crossing(from.position, d, far).is_some();
+        if from.direction_to(to).is_some_and(crosses) {
+            return false;
+        }
+    }
     let g = &scene.geometry;
     match (a.is_at_infinity(), b.is_at_infinity()) {
         (false, false) => g.visible(

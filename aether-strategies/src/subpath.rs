@@ -98,6 +98,12 @@ impl<'a> Subpath<'a> {
         self.bsdfs[i].as_ref()
     }
 
+    /// The factors of f that the first `i + 1` vertices fix (see [`Subpath`]).
+    #[must_use]
+    pub fn product(&self, i: usize) -> DVec3 {
+        self.products[i]
+    }
+
     /// True if a connection can end at vertex `i`: it is not on a purely
     /// specular surface.
     #[must_use]

@@ -205,7 +205,17 @@ impl RayCaster<SceneVertex> for Scene {
             }
             _ => from.position,
         };
-        match self.geometry.intersect(origin, direction, f32::INFINITY) {
+        let hit = self.geometry.intersect(origin, direction, f32::INFINITY);
+        // A thin lens's aperture is a surface: light paths reach the camera
+        // on it, and it stops what crosses it (rays leaving it cannot).
+        let far = hit
+            .as_ref()
+            .map_or(f32::INFINITY, |h| (h.position - origin).length());
+        let lens = self.aperture().filter(|_| from.site != Site::Lens);
+        if let Some((a, p)) = lens.and_then(|a| Some((a, a.crossing(origin, direction, far)?))) {
+            return Some(SceneVertex::lens(p, a.axis));
+        }
+        match hit {
             Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
             None => self
                 .has_environment()
@@ -214,7 +224,42 @@ impl RayCaster<SceneVertex> for Scene {
     }
 }
 
+/// The aperture of a thin-lens camera: a disk facing along the view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aperture {
+    /// Centre.
+    pub center: Vec3,
+    /// Unit viewing direction, the disk's normal.
+    pub axis: Vec3,
+    /// Radius.
+    pub radius: f32,
+}
+
+impl Aperture {
+    /// Where the ray from `origin` along `direction` crosses the disk
+    /// strictly between 0 and `far`, if it does.
+    #[must_use]
+    pub fn crossing(&self, origin: Vec3, direction: Vec3, far: f32) -> Option<Vec3> {
+        let along = direction.dot(self.axis);
+        let t = (self.center - origin).dot(self.axis) / along;
+        let p = origin + t * direction;
+        let inside = (p - self.center).length_squared() <= self.radius * self.radius;
+        (along != 0.0 && t > 0.0 && t < far && inside).then_some(p)
+    }
+}
+
 impl Scene {
+    /// The camera's aperture, if it is a thin lens.
+    #[must_use]
+    pub fn aperture(&self) -> Option<Aperture> {
+        let c = &self.camera;
+        (c.aperture_radius > 0.0).then(|| Aperture {
+            center: c.to_world.transform_point3(Vec3::ZERO),
+            axis: crate::camera::frame_of(c.to_world).n,
+            radius: c.aperture_radius,
+        })
+    }
+
     /// True if the scene has a constant or environment-map emitter.
     #[must_use]
     pub fn has_environment(&self) -> bool {

@@ -12,7 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, PathDensity, Pcg32, RandomSequence, StrategyRef,
+    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef,
     weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
@@ -23,7 +23,7 @@ use aether_strategies::portal::PortalSegment;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
 use aether_strategies::subpath::{End, Subpath};
-use aether_strategies::vertex::SceneVertex;
+use aether_strategies::vertex::{SceneVertex, Site};
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
@@ -69,6 +69,10 @@ pub struct Bdpt<'s> {
     roulette: Roulette,
     heuristic: Heuristic,
     images: Option<TechniqueImages>,
+    /// Light paths per pixel sample that may splat to it: one per pixel.
+    splats: f64,
+    /// True for a thin lens, which light paths can reach (s = 0).
+    lens: bool,
 }
 
 /// The strategies of one sample.
@@ -99,6 +103,8 @@ impl<'s> Bdpt<'s> {
             roulette,
             heuristic: Heuristic::POWER,
             images: None,
+            splats: f64::from(scene.film.width) * f64::from(scene.film.height),
+            lens: scene.aperture().is_some(),
         })
     }
 
@@ -188,7 +194,9 @@ impl Estimator for Bdpt<'_> {
         let (max, f) = (self.max_vertices, self.integrand(lights));
         DENSITIES.with_borrow_mut(DensityCache::clear);
         let cam = walk([&kit.lens, &kit.look], &kit.scatter, max, rng);
-        let light = walk([&kit.emit, &kit.leave], &kit.gather, max - 1, rng);
+        // Light paths may reach a thin lens (s = 0) with the last vertex.
+        let reach = max - usize::from(!self.lens);
+        let light = walk([&kit.emit, &kit.leave], &kit.gather, reach, rng);
         let eye = Subpath::of(f, End::Camera, cam.vertices());
         let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
         let mut run = Run {
@@ -201,6 +209,12 @@ impl Estimator for Bdpt<'_> {
         let mut radiance = DVec3::ZERO;
         for s in 1..=cam.len() {
             radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
+        }
+        let on_lens = |v: &SceneVertex| v.site == Site::Lens;
+        if light.vertices().last().is_some_and(on_lens) {
+            run.path.clear();
+            run.path.extend_from(&light, 0..light.len(), true);
+            radiance += self.contribute(&mut run, Split::Bdpt(0), ends.1.product(light.len() - 1));
         }
         let Some(portal) = &self.portal else {
             return radiance.as_vec3();
@@ -246,20 +260,16 @@ impl<'s> Bdpt<'s> {
         (light, lamp): (&Path<'a>, &Subpath<'_>),
         own: Split,
     ) -> DVec3 {
-        let mut radiance = DVec3::ZERO;
+        let (mut radiance, open) = (DVec3::ZERO, side.connectible(n - 1));
         for t in 0..=lamp.len().max(1).min(self.max_vertices - n) {
             run.path.clear();
             run.path.extend_from(head, 0..n, false);
             let through = match t {
                 0 => side.emitted(n),
-                1 if side.connectible(n - 1)
-                    && run.path.append_sample(&run.kit.direct, run.rng) =>
-                {
+                1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
                     side.connect_lamp(n, &run.path.vertices()[n])
                 }
-                2.. if side.connectible(n - 1) && lamp.connectible(t - 1) => {
-                    side.connect(n, lamp, t)
-                }
+                2.. if open && lamp.connectible(t - 1) => side.connect(n, lamp, t),
                 _ => continue,
             };
             if t >= 2 && through != DVec3::ZERO {
@@ -276,20 +286,14 @@ impl<'s> Bdpt<'s> {
     fn contribute(&self, run: &mut Run<'_, '_, 's>, own: Split, through: DVec3) -> DVec3 {
         let v = run.path.vertices();
         // Occluded or black paths need no weight.
-        let Some(d) = v
-            .get(1)
-            .filter(|_| through != DVec3::ZERO)
-            .and_then(|b| v[0].direction_to(b))
-        else {
+        if through == DVec3::ZERO {
             return DVec3::ZERO;
-        };
-        let splat = matches!(own, Split::Bdpt(1) | Split::Portal(1));
+        }
+        let d = v[0].direction_to(&v[1]).unwrap_or(Vec3::Z);
+        let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
+        let at = |j| (j, self.camera.direction(self.scene, j));
         let pixels: SmallVec<[_; 16]> = match splat {
-            true => self
-                .camera
-                .pixels_toward(&v[0], d)
-                .map(|j| (j, self.camera.direction(self.scene, j)))
-                .collect(),
+            true => self.camera.pixels_toward(&v[0], d).map(at).collect(),
             false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
         let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
@@ -317,7 +321,7 @@ impl<'s> Bdpt<'s> {
 
     /// The MIS weights of `path` for the pixels of `looks`, the camera
     /// direction strategies of each, against every split of it, and its
-    /// density under its own (zero where it has none).
+    /// density under its own (zero, or not finite, where it has none).
     fn weights<'a>(
         &'a self,
         kit: &'a Kit<'_, 's>,
@@ -327,13 +331,11 @@ impl<'s> Bdpt<'s> {
     ) -> SmallVec<[(f64, f64); 16]> {
         let n = path.len();
         let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p as _));
-        // Each camera sample also traces a light path, which may splat anywhere.
-        let [w, h] = self.camera.size();
-        let splats = f64::from(w) * f64::from(h);
-        let splits = aether_core::Split::bidirectional(n, Some(one(&kit.direct)), portal, splats);
+        let (direct, splats) = (Some(one(&kit.direct)), self.splats);
+        let splits = aether_core::Split::bidirectional(n, direct, portal, splats, self.lens);
         let index = match own {
-            Split::Bdpt(s) => s - 1,
-            Split::Portal(k) => n + k - 1,
+            Split::Bdpt(s) => s,
+            Split::Portal(k) => n + k,
         };
         // No pixel (a splat off the film) leaves nothing to weigh.
         let Some(&look) = looks.first() else {
@@ -345,7 +347,6 @@ impl<'s> Bdpt<'s> {
             let (h, c) = (self.heuristic, Some(cache));
             weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
         });
-        let value = |p: PathDensity| if p.is_zero() { 0.0 } else { p.value() };
-        weights.iter().map(|&(w, p)| (w, value(p))).collect()
+        weights.iter().map(|&(w, p)| (w, p.value())).collect()
     }
 }

@@ -170,7 +170,7 @@ fn run(args: RenderArgs) -> Result<(), String> {
             let bdpt = bdpt.with_technique_images(args.technique_vertices);
             let r = render_with(&scene, &bdpt, &settings, &stop)?;
             if let Some(images) = bdpt.technique_images() {
-                images.write(dir, r.samples, scene.film.spp)?;
+                images.write(dir, r.samples, scene.film.spp, scene.aperture().is_some())?;
             }
             r
         }

@@ -9,8 +9,8 @@ use crate::film::SplatBuffer;
 use crate::output::write_exr;
 
 /// One weighted and one unweighted image per (s, t) technique with
-/// s ≥ 1 camera vertices and s + t ≤ `max_vertices`. Costs 48 bytes a pixel
-/// a technique: meant for small films.
+/// s + t ≤ `max_vertices` (s = 0, light paths that reach a thin lens,
+/// included). Costs 48 bytes a pixel a technique: meant for small films.
 #[derive(Debug)]
 pub struct TechniqueImages {
     width: u32,
@@ -24,7 +24,7 @@ impl TechniqueImages {
     /// Black images for paths of 2 to `max_vertices` vertices.
     #[must_use]
     pub fn new(width: u32, height: u32, max_vertices: usize) -> Self {
-        let count = (max_vertices * (max_vertices + 1) / 2).saturating_sub(1);
+        let count = ((max_vertices + 1) * (max_vertices + 2) / 2).saturating_sub(3);
         let buffers = || {
             (0..count)
                 .map(|_| SplatBuffer::new(width, height))
@@ -40,10 +40,10 @@ impl TechniqueImages {
     }
 
     /// Position of (s, t) in the pyramid: rows by length n = s + t ≥ 2,
-    /// each row holding s = 1 ..= n.
+    /// each row holding s = 0 ..= n.
     fn index(s: usize, t: usize) -> usize {
         let n = s + t;
-        (n * (n - 1)) / 2 - 1 + (s - 1)
+        n * (n + 1) / 2 - 3 + s
     }
 
     /// Records a contribution of technique (s, t) to `pixel`. Camera-path
@@ -59,7 +59,7 @@ impl TechniqueImages {
         unweighted: DVec3,
         splatted: bool,
     ) {
-        if s == 0 || s + t < 2 || s + t > self.max_vertices {
+        if s + t < 2 || s + t > self.max_vertices {
             return;
         }
         let scale = if splatted {
@@ -76,7 +76,7 @@ impl TechniqueImages {
     /// of the whole film (pixels × samples per pixel).
     #[must_use]
     pub fn images(&self, s: usize, t: usize, samples: u64) -> Option<[Vec<[f32; 3]>; 2]> {
-        if s == 0 || s + t < 2 || s + t > self.max_vertices || samples == 0 {
+        if s + t < 2 || s + t > self.max_vertices || samples == 0 {
             return None;
         }
         let i = Self::index(s, t);
@@ -87,14 +87,15 @@ impl TechniqueImages {
         ])
     }
 
-    /// Writes `s{s}_t{t}.exr` and `s{s}_t{t}_unweighted.exr` into `dir`.
+    /// Writes `s{s}_t{t}.exr` and `s{s}_t{t}_unweighted.exr` into `dir`
+    /// (s = 0 only for a thin lens, which light paths can reach).
     ///
     /// # Errors
     /// If the folder or a file cannot be written.
-    pub fn write(&self, dir: &Path, samples: u64, spp: u32) -> Result<(), String> {
+    pub fn write(&self, dir: &Path, samples: u64, spp: u32, lens: bool) -> Result<(), String> {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         for n in 2..=self.max_vertices {
-            for s in 1..=n {
+            for s in usize::from(!lens)..=n {
                 let [w, u] = self.images(s, n - s, samples).expect("in the pyramid");
                 let name = format!("s{s}_t{}", n - s);
                 let (wf, uf) = (
