@@ -121,17 +121,24 @@ const T_CRITICAL_1_PERCENT: [f64; 15] = [
     2.977, 2.947,
 ];
 
-/// Compares `a` with `b`, over the pixels where `skip` is not true: their
-/// means, and each pixel at level 1 %: the difference over
-/// its standard error follows Student's t with at least renders − 1 degrees
-/// of freedom if both converge to the same image, so at most 1 % of pixels
-/// (plus binomial noise) may exceed the critical value. Pixels where `skip`
-/// is true are left out.
+/// Compares `a` with `b`, over the pixels where `skip` is not true: each
+/// pixel at level 1 % (the difference over its standard error follows
+/// Student's t with at least renders − 1 degrees of freedom if both converge
+/// to the same image, so at most 1 % of pixels, plus binomial noise, may
+/// exceed the critical value), and the image means, from which the pixels
+/// in `edges` are left out too: pixels that see a light, whose noise at
+/// the light's edge would take far more samples than a test can afford to
+/// pin a mean down to 0.5 % (the per-pixel test still covers them).
 ///
 /// # Panics
 /// If the estimates differ in size or have fewer than 2 or more than 16 renders.
 #[must_use]
-pub fn agreement(a: &Estimate, b: &Estimate, skip: Option<&[bool]>) -> Agreement {
+pub fn agreement(
+    a: &Estimate,
+    b: &Estimate,
+    skip: Option<&[bool]>,
+    edges: Option<&[bool]>,
+) -> Agreement {
     assert_eq!(a.mean.len(), b.mean.len());
     let df = a.renders.min(b.renders) as usize - 1;
     let critical = T_CRITICAL_1_PERCENT[df - 1];
@@ -142,9 +149,11 @@ pub fn agreement(a: &Estimate, b: &Estimate, skip: Option<&[bool]>) -> Agreement
             continue;
         }
         let v = a.variance[i] + b.variance[i];
-        ma += a.mean[i];
-        mb += b.mean[i];
-        var += v;
+        if !edges.is_some_and(|e| e[i]) {
+            ma += a.mean[i];
+            mb += b.mean[i];
+            var += v;
+        }
         if v <= 0.0 {
             continue;
         }
@@ -164,20 +173,21 @@ pub fn agreement(a: &Estimate, b: &Estimate, skip: Option<&[bool]>) -> Agreement
     }
 }
 
-/// Asserts that `a` and `b` agree: image means within `tolerance`
-/// (relative) or, where the estimates are noisier than that, within four
-/// standard errors; and a per-pixel failure rate within [`Agreement::allowed`].
+/// Asserts that `a` and `b` agree ([`agreement`]): image means within
+/// `tolerance` (relative), with a standard error small enough to tell
+/// (below a third of it), and a per-pixel failure rate within
+/// [`Agreement::allowed`].
 ///
 /// # Panics
 /// If they do not.
 pub fn assert_agree(
     scene: &str,
-    a: &Estimate,
-    b: &Estimate,
+    (a, b): (&Estimate, &Estimate),
     skip: Option<&[bool]>,
+    edges: Option<&[bool]>,
     tolerance: f64,
 ) {
-    let r = agreement(a, b, skip);
+    let r = agreement(a, b, skip, edges);
     let rate = r.failures as f64 / r.tested.max(1) as f64;
     println!(
         "{scene}: {} {:.5} ± {:.5}, {} {:.5} ± {:.5} (whole images)",
@@ -201,7 +211,15 @@ pub fn assert_agree(
     );
     assert!(r.tested > 0, "{scene}: no pixel to test");
     assert!(
-        r.relative_difference.abs() < tolerance.max(4.0 * r.relative_error),
+        r.relative_error < tolerance / 3.0,
+        "{scene}: {} and {}: a standard error of {:.3} % cannot resolve {:.2} %",
+        a.integrator,
+        b.integrator,
+        100.0 * r.relative_error,
+        100.0 * tolerance
+    );
+    assert!(
+        r.relative_difference.abs() < tolerance,
         "{scene}: {} and {} means differ by {:.3} % ± {:.3} %",
         a.integrator,
         b.integrator,
@@ -216,16 +234,6 @@ pub fn assert_agree(
         r.failures,
         r.tested
     );
-}
-
-/// The pixels where either estimate exceeds `threshold`: in tests, the
-/// pixels that see a light, whose edge noise would need far more samples
-/// than a test can afford to pin the image mean down to 0.1 %.
-#[must_use]
-pub fn brighter_than(threshold: f64, estimates: &[&Estimate]) -> Vec<bool> {
-    (0..estimates[0].mean.len())
-        .map(|i| estimates.iter().any(|e| e.mean[i] > threshold))
-        .collect()
 }
 
 /// The lines of the function `name` (its signature through its closing
