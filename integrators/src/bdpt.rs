@@ -12,7 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef,
+    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, UniformSource,
     weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
@@ -31,6 +31,11 @@ use crate::estimator::{Estimator, Splats, path_limits};
 use crate::techniques::TechniqueImages;
 
 type Path<'a> = RandomSequence<'a, SceneVertex>;
+
+/// The share of samples that also sample portal segments: tridirectional
+/// tracing's extra techniques cost more than BDPT's, and pay off on fewer
+/// paths. MIS counts them as that many samples per pixel sample.
+const PORTAL_SHARE: f32 = 0.25;
 
 thread_local! {
     /// Densities shared by the connections of one sample.
@@ -216,7 +221,9 @@ impl Estimator for Bdpt<'_> {
             run.path.extend_from(&light, 0..light.len(), true);
             radiance += self.contribute(&mut run, Split::Bdpt(0), ends.1.product(light.len() - 1));
         }
-        let Some(portal) = &self.portal else {
+        // Portal segments for a share of the samples, each counting 1 / share.
+        let share = self.portal.is_some() && run.rng.next_f32() < PORTAL_SHARE;
+        let Some(portal) = self.portal.as_ref().filter(|_| share) else {
             return radiance.as_vec3();
         };
         // One line through the portal for each side the camera vertices are on.
@@ -321,7 +328,8 @@ impl<'s> Bdpt<'s> {
 
     /// The MIS weights of `path` for the pixels of `looks`, the camera
     /// direction strategies of each, against every split of it, and its
-    /// density under its own (zero, or not finite, where it has none).
+    /// density under its own times the share of samples that use it (zero,
+    /// or not finite, where it has none).
     fn weights<'a>(
         &'a self,
         kit: &'a Kit<'_, 's>,
@@ -330,12 +338,13 @@ impl<'s> Bdpt<'s> {
         path: &Path<'_>,
     ) -> SmallVec<[(f64, f64); 16]> {
         let n = path.len();
-        let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p as _));
+        let share = f64::from(PORTAL_SHARE);
+        let portal = self.portal.as_ref().map(|p| (StrategyRef::Two(p), share));
         let (direct, splats) = (Some(one(&kit.direct)), self.splats);
         let splits = aether_core::Split::bidirectional(n, direct, portal, splats, self.lens);
-        let index = match own {
-            Split::Bdpt(s) => s,
-            Split::Portal(k) => n + k,
+        let (index, share) = match own {
+            Split::Bdpt(s) => (s, 1.0),
+            Split::Portal(k) => (n + k, share),
         };
         // No pixel (a splat off the film) leaves nothing to weigh.
         let Some(&look) = looks.first() else {
@@ -343,10 +352,10 @@ impl<'s> Bdpt<'s> {
         };
         let camera = [one(&kit.lens), look, one(&kit.scatter)];
         let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
-        let weights = DENSITIES.with_borrow_mut(|cache| {
+        let found = DENSITIES.with_borrow_mut(|cache| {
             let (h, c) = (self.heuristic, Some(cache));
             weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
         });
-        weights.iter().map(|&(w, p)| (w, p.value())).collect()
+        found.iter().map(|&(w, p)| (w, p.value() * share)).collect()
     }
 }

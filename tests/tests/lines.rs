@@ -118,7 +118,7 @@ fn each_integrator_stays_within_its_budget() {
     // and technique index in the weights.
     let tridir_lines = lines_between(
         &bdpt,
-        "let Some(portal) = &self.portal",
+        "// Portal segments for a share",
         "\n        radiance.as_vec3()\n    }\n}",
     ) + 2;
     let bdpt_lines = count(
