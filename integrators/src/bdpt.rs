@@ -74,7 +74,8 @@ pub struct Bdpt<'s> {
     roulette: Roulette,
     heuristic: Heuristic,
     images: Option<TechniqueImages>,
-    /// Light paths per pixel sample that may splat to it: one per pixel.
+    /// Light paths per pixel sample that may splat to it: one per rendered
+    /// pixel (of the crop window).
     splats: f64,
     /// True for a thin lens, which light paths can reach (s = 0).
     lens: bool,
@@ -108,7 +109,8 @@ impl<'s> Bdpt<'s> {
             roulette,
             heuristic: Heuristic::POWER,
             images: None,
-            splats: f64::from(scene.film.width) * f64::from(scene.film.height),
+            // Each rendered pixel's sample traces one light path.
+            splats: f64::from(scene.film.crop[2]) * f64::from(scene.film.crop[3]),
             lens: scene.aperture().is_some(),
         })
     }
