@@ -1,2 +1,75 @@
 //! Short programs that reproduce the Aether examples; see `examples/`.
+//! This library holds what they share: loading an Aether scene at a chosen
+//! resolution, and rendering it to an EXR image and PNG preview.
 #![deny(unsafe_code)]
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use aether_strategies::scene::Scene;
+use integrators::estimator::Estimator;
+use integrators::output::{write_exr, write_png};
+use integrators::render::{Rendered, Settings, render_with};
+
+/// The workspace folder.
+#[must_use]
+pub fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Loads `file` (relative to the workspace, like
+/// `../shared/scenes/aether/cbox/cbox_path.xml`) with its film scaled by
+/// `scale`.
+///
+/// # Errors
+/// If the scene does not load; the message names the file.
+pub fn load(file: &str, scale: f64) -> Result<Scene, String> {
+    let mut scene =
+        Scene::load(&workspace().join(file), &HashMap::new()).map_err(|e| e.to_string())?;
+    let film = &mut scene.film;
+    film.width = ((f64::from(film.width) * scale).round() as u32).max(1);
+    film.height = ((f64::from(film.height) * scale).round() as u32).max(1);
+    film.crop = [0, 0, film.width, film.height];
+    Ok(scene)
+}
+
+/// Renders `scene` with `estimator` at `spp` samples per pixel and writes
+/// `NAME.exr` and `NAME.png` into `target/examples`, printing where and how fast.
+///
+/// # Errors
+/// If the render or a file fails.
+pub fn render_to(
+    scene: &Scene,
+    estimator: &dyn Estimator,
+    spp: u32,
+    name: &str,
+) -> Result<Rendered, String> {
+    let settings = Settings {
+        spp,
+        seed: 1,
+        time_limit: None,
+        threads: None,
+        progress: true,
+    };
+    let r = render_with(scene, estimator, &settings, &AtomicBool::new(false))?;
+    let dir = workspace().join("target/examples");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let (w, h, image) = (scene.film.width, scene.film.height, r.film.image());
+    write_exr(
+        &dir.join(format!("{name}.exr")),
+        w,
+        h,
+        &image,
+        spp,
+        r.seconds,
+    )?;
+    write_png(&dir.join(format!("{name}.png")), w, h, &image, 0.0)?;
+    println!(
+        "{name}: {w}×{h}, {spp} spp, {:.1} s, {:.0} samples/s -> {}",
+        r.seconds,
+        r.samples as f64 / r.seconds,
+        dir.join(format!("{name}.png")).display()
+    );
+    Ok(r)
+}
