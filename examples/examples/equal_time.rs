@@ -14,7 +14,7 @@
 //! `target/equal-time`) and reused when present.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
@@ -48,7 +48,7 @@ struct Options {
 }
 
 fn options() -> Result<Options, String> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let root = examples::workspace();
     let mut o = Options {
         seconds: 15.0,
         reference_seconds: 240.0,
@@ -76,18 +76,11 @@ fn options() -> Result<Options, String> {
 }
 
 fn load(case: &Case, scale: f64) -> Result<Scene, String> {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join(case.file);
-    let mut scene = Scene::load(&file, &HashMap::new()).map_err(|e| e.to_string())?;
+    let mut scene = examples::load(case.file, scale)?;
     // Aether's integrators stop at depth 6 where a scene sets no limit.
     if scene.integrator.max_depth < 0 {
         scene.integrator.max_depth = 6;
     }
-    let film = &mut scene.film;
-    film.width = ((f64::from(film.width) * scale).round() as u32).max(1);
-    film.height = ((f64::from(film.height) * scale).round() as u32).max(1);
-    film.crop = [0, 0, film.width, film.height];
     Ok(scene)
 }
 
@@ -100,13 +93,7 @@ fn run(
     seed: u64,
 ) -> Result<integrators::render::Passes, String> {
     scene.integrator.name = integrator.into();
-    let settings = Settings {
-        spp: 1,
-        seed,
-        time_limit: None,
-        threads: None,
-        progress: false,
-    };
+    let settings = Settings::new(1, seed);
     let stop = AtomicBool::new(false);
     render_passes(
         scene,

@@ -117,13 +117,7 @@ fn light_sphere(scene: &Scene) -> (Vec3, f32) {
 }
 
 fn render(scene: &Scene, estimator: &dyn Estimator, spp: u32, seed: u64) -> Vec<[f32; 3]> {
-    let settings = Settings {
-        spp,
-        seed,
-        time_limit: None,
-        threads: None,
-        progress: false,
-    };
+    let settings = Settings::new(spp, seed);
     let r =
         render_with(scene, estimator, &settings, &AtomicBool::new(false)).expect("threads start");
     r.film.image()

@@ -46,11 +46,8 @@ pub fn render_to(
     name: &str,
 ) -> Result<Rendered, String> {
     let settings = Settings {
-        spp,
-        seed: 1,
-        time_limit: None,
-        threads: None,
         progress: true,
+        ..Settings::new(spp, 1)
     };
     let r = render_with(scene, estimator, &settings, &AtomicBool::new(false))?;
     let dir = workspace().join("target/examples");

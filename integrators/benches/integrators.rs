@@ -23,13 +23,7 @@ fn env_or(name: &str, default: u32) -> u32 {
 
 fn run(scene: &mut Scene, integrator: &str, spp: u32) -> Result<Rendered, String> {
     scene.integrator.name = integrator.to_string();
-    let settings = Settings {
-        spp,
-        seed: 1,
-        time_limit: None,
-        threads: None,
-        progress: false,
-    };
+    let settings = Settings::new(spp, 1);
     render(scene, &settings, &AtomicBool::new(false))
 }
 

@@ -39,6 +39,27 @@ pub struct Settings {
     pub progress: bool,
 }
 
+impl Settings {
+    /// `spp` samples per pixel from the streams of `seed`, on all cores,
+    /// with no time limit and no progress bar.
+    ///
+    /// ```
+    /// use integrators::render::Settings;
+    /// let settings = Settings { progress: true, ..Settings::new(16, 1) };
+    /// assert_eq!((settings.spp, settings.threads), (16, None));
+    /// ```
+    #[must_use]
+    pub fn new(spp: u32, seed: u64) -> Self {
+        Settings {
+            spp,
+            seed,
+            time_limit: None,
+            threads: None,
+            progress: false,
+        }
+    }
+}
+
 /// What a render produced.
 #[derive(Debug)]
 pub struct Rendered {
@@ -257,11 +278,8 @@ mod tests {
         let stop = AtomicBool::new(false);
         let run = |threads| {
             let s = Settings {
-                spp: 4,
-                seed: 7,
-                time_limit: None,
                 threads: Some(threads),
-                progress: false,
+                ..Settings::new(4, 7)
             };
             render(&scene, &s, &stop).unwrap()
         };
@@ -285,11 +303,8 @@ mod tests {
         let scene = cornell_box(16, 16, 1);
         let stop = AtomicBool::new(false);
         let s = Settings {
-            spp: 2,
-            seed: 3,
-            time_limit: None,
             threads: Some(2),
-            progress: false,
+            ..Settings::new(2, 3)
         };
         let path = PathTracer::new(&scene).unwrap();
         let r = render_passes(&scene, &path, &s, Duration::ZERO, &stop).unwrap();
@@ -309,11 +324,8 @@ mod tests {
         let scene = cornell_box(64, 64, 1);
         let stop = AtomicBool::new(true);
         let s = Settings {
-            spp: 1,
-            seed: 1,
-            time_limit: None,
             threads: Some(1),
-            progress: false,
+            ..Settings::new(1, 1)
         };
         let r = render(&scene, &s, &stop).unwrap();
         assert!(!r.complete);

@@ -55,13 +55,7 @@ impl Estimate {
         let n = scene.film.width as usize * scene.film.height as usize;
         let (mut sum, mut sum2) = (vec![0.0; n], vec![0.0; n]);
         for seed in 1..=u64::from(renders) {
-            let settings = Settings {
-                spp,
-                seed,
-                time_limit: None,
-                threads: None,
-                progress: false,
-            };
+            let settings = Settings::new(spp, seed);
             let r = render(scene, &settings, &AtomicBool::new(false))
                 .unwrap_or_else(|e| panic!("{integrator}: {e}"));
             assert_eq!(r.film.dropped(), 0, "{integrator} dropped samples");

@@ -30,13 +30,7 @@ fn furnace_room() -> Scene {
 fn furnace(integrator: &str, spp: u32) -> (f64, f64, u64) {
     let mut scene = furnace_room();
     scene.integrator.name = integrator.to_string();
-    let settings = Settings {
-        spp,
-        seed: 3,
-        time_limit: None,
-        threads: None,
-        progress: false,
-    };
+    let settings = Settings::new(spp, 3);
     let r = render(&scene, &settings, &AtomicBool::new(false)).unwrap();
     assert!(r.complete);
     let image = r.film.image();
@@ -87,13 +81,7 @@ fn tridirectional_tracing_renders_a_furnace_at_l_over_one_minus_rho() {
 fn direct_lighting_stops_after_one_bounce() {
     let mut scene = furnace_room();
     scene.integrator.name = "direct".to_string();
-    let settings = Settings {
-        spp: 32,
-        seed: 5,
-        time_limit: None,
-        threads: None,
-        progress: false,
-    };
+    let settings = Settings::new(32, 5);
     let r = render(&scene, &settings, &AtomicBool::new(false)).unwrap();
     let image = r.film.image();
     let n = image.len() as f64;

@@ -38,13 +38,7 @@ fn technique_means(s: usize, t: usize) -> Vec<[f64; 2]> {
     (1..=RENDERS)
         .map(|seed| {
             let bdpt = Bdpt::new(&scene).unwrap().with_technique_images(3);
-            let settings = Settings {
-                spp: 256,
-                seed,
-                time_limit: None,
-                threads: None,
-                progress: false,
-            };
+            let settings = Settings::new(256, seed);
             let r = render_with(&scene, &bdpt, &settings, &AtomicBool::new(false)).unwrap();
             let images = bdpt
                 .technique_images()
