@@ -27,6 +27,8 @@
 //!   [`PathDensity`] compares by Dirac order first.
 //! * Paths: [`Strategy`], [`RandomSequence`] (append, sample, slice, concat,
 //!   reverse, pdf) and [`combine`] with a [`Heuristic`].
+//! * Shifts between paths (gradient-domain rendering): [`replay_jacobian`]
+//!   and [`weight_of_shift`], from the same conditional densities.
 //! * Verification: [`harness`] checks any distribution or strategy against
 //!   finite differences, chi-square histograms and MIS partition of unity.
 //! * [`testing`]: a tiny analytic scene and strategies for examples and tests.
@@ -46,6 +48,7 @@ mod mis;
 pub mod primitives;
 mod rng;
 mod sequence;
+mod shift;
 mod strategy;
 mod surface;
 pub mod testing;
@@ -57,10 +60,12 @@ pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
 pub use mis::{
-    DensityCache, Heuristic, Split, Weights, combine, weight_of_split, weights_of_split_variants,
+    DensityCache, Heuristic, Split, Weights, combine, densities_of_split, weight_of_split,
+    weights_of_split_variants,
 };
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
+pub use shift::{replay_jacobian, weight_of_shift};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
 };

@@ -517,6 +517,25 @@ pub fn weights_of_split_variants<'s, V: Vertex>(
         .collect()
 }
 
+/// The density of `path` under each of `splits`, times its number of
+/// samples (as MIS weighs them): the densities that
+/// [`weight_of_split`] compares, for weights that also involve other paths
+/// ([`weight_of_shift`](crate::weight_of_shift)).
+#[must_use]
+pub fn densities_of_split<'s, V: Vertex>(
+    path: &RandomSequence<'_, V>,
+    camera: &[StrategyRef<'s, V>],
+    light: &[StrategyRef<'s, V>],
+    splits: &[Split<'s, V>],
+    cache: Option<&mut DensityCache>,
+) -> SmallVec<[PathDensity; 24]> {
+    if !path.is_complete() {
+        let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
+        return splits.iter().map(|_| zero).collect();
+    }
+    counted(&split_densities(path, camera, light, splits, cache), splits)
+}
+
 /// The density of `path` under each of `splits`.
 fn split_densities<'s, V: Vertex>(
     path: &RandomSequence<'_, V>,

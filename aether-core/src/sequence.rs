@@ -705,6 +705,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         })
     }
 
+    /// The density of the vertices at `range` under the strategies that
+    /// sampled them, each conditioned on this sequence's other vertices:
+    /// the part of [`pdf`](Self::pdf) from the steps that start in `range`.
+    #[must_use]
+    pub fn pdf_of_steps(&self, range: Range<usize>) -> PathDensity {
+        self.spans()
+            .take_while(|span| span.start < self.len())
+            .filter(|span| range.contains(&span.start))
+            .fold(PathDensity::ONE, |p, span| {
+                p.times(self.factor(&span, None))
+            })
+    }
+
     /// The density of this sequence's own vertices under its own
     /// strategies, in the product of the vertices' measures.
     #[must_use]

@@ -251,3 +251,55 @@ fn unused_properties_warn_and_flip_normals_flips() {
         "the rectangle faces -z once flipped"
     );
 }
+
+#[test]
+fn gradient_domain_parameters_are_read_under_both_names() {
+    use aether_strategies::scene::GradientSettings;
+    let scene_with = |integrator: &str| {
+        format!(
+            "<scene><sensor type=\"perspective\"/>\n{integrator}\n<shape type=\"sphere\"/></scene>"
+        )
+    };
+    let load = |name: &str, integrator: &str| {
+        Scene::load(&write_temp(name, &scene_with(integrator)), &HashMap::new())
+    };
+    let aether = load(
+        "aether-gpt.xml",
+        "<integrator type=\"mygpt\"><float name=\"specularRoughnessThreshold\" value=\"0.1\"/><boolean name=\"doL1Reconstruction\" value=\"false\"/></integrator>",
+    )
+    .unwrap();
+    assert_eq!(aether.integrator.name, "gpt");
+    assert_eq!(
+        aether.integrator.gradient,
+        GradientSettings {
+            roughness_threshold: 0.1,
+            l1: false,
+            alpha: 0.04
+        }
+    );
+    assert!(aether.warnings.is_empty(), "{:?}", aether.warnings);
+    let mitsuba = load(
+        "mitsuba-gpt.xml",
+        "<integrator type=\"gpt\"><float name=\"shiftThreshold\" value=\"0.05\"/><boolean name=\"reconstructL1\" value=\"true\"/><float name=\"reconstructAlpha\" value=\"0.2\"/></integrator>",
+    )
+    .unwrap();
+    assert_eq!(
+        mitsuba.integrator.gradient,
+        GradientSettings {
+            roughness_threshold: 0.05,
+            l1: true,
+            alpha: 0.2
+        }
+    );
+    let e = load(
+        "bad-gpt.xml",
+        "<integrator type=\"gpt\"><float name=\"reconstructAlpha\" value=\"-1\"/></integrator>",
+    )
+    .map(|_| ())
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("bad-gpt.xml:2") && e.contains("reconstructAlpha must be positive"),
+        "{e}"
+    );
+}

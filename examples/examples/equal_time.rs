@@ -1,42 +1,60 @@
-//! Equal-time comparison of path tracing, BDPT and tridirectional path
-//! tracing (Anderson et al. 2017, figure of the keyhole box): each renders
-//! whole passes for the same wall-clock time, and its RMSE against a long
-//! BDPT reference is printed. BDPT should beat path tracing on Veach's
-//! bidirectional scene and on the keyhole box; tridirectional tracing, which
-//! samples segments through the keyhole, should beat BDPT on the box.
+//! Equal-time comparisons (Anderson et al. 2017): each integrator renders
+//! whole passes for the same wall-clock time, and its RMSE and relMSE
+//! against a long BDPT reference are printed.
+//!
+//! - Veach's bidirectional scene: BDPT and gradient-domain path tracing
+//!   (L1 reconstruction) should beat path tracing.
+//! - The keyhole box: BDPT should beat path tracing, and tridirectional
+//!   tracing, which samples segments through the keyhole, BDPT.
+//! - Aether's cbox-sphere: gradient-domain path tracing against path tracing.
 //!
 //! ```text
 //! cargo run --release -p examples --example equal_time -- \
-//!     [--seconds 15] [--reference-seconds 240] [--scale 0.25] [--cache DIR]
+//!     [--seconds 15] [--reference-seconds 240] [--scale 0.25] [--cache DIR] [--only NAME]
 //! ```
 //!
 //! References are written to the cache folder (default
-//! `target/equal-time`) and reused when present.
+//! `target/equal-time`) and reused when present. Gradient-domain tracing's
+//! time includes its reconstruction.
 
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use aether_strategies::scene::Scene;
+use integrators::gradient::{GradientPathTracer, render_gradient_passes};
 use integrators::output::{Comparison, read_exr, write_exr};
-use integrators::render::{Settings, estimator, render_passes};
+use integrators::render::{Passes, Settings, estimator, render_passes};
 
-/// A scene of the comparison, relative to the workspace.
+/// A scene of the comparison, relative to the workspace, the integrators
+/// compared on it and the claims checked: (a, b) for "a beats b".
 struct Case {
     name: &'static str,
     file: &'static str,
+    integrators: &'static [&'static str],
+    claims: &'static [(&'static str, &'static str)],
 }
 
-const CASES: [Case; 2] = [
+const CASES: [Case; 3] = [
     Case {
         name: "veach_bidir",
         file: "../shared/scenes/aether/veach_bidir/bidir-bdpt.xml",
+        integrators: &["path", "bdpt", "gpt"],
+        claims: &[("bdpt", "path"), ("gpt", "path")],
     },
     Case {
         name: "keyhole box",
         // Aether's keyhole box, its hole declared a portal (Aether hard-codes it).
         file: "scenes/cbox_tridir_keyhole.xml",
+        integrators: &["path", "bdpt", "tridir"],
+        claims: &[("bdpt", "path"), ("tridir", "bdpt")],
+    },
+    Case {
+        name: "cbox-sphere",
+        file: "../shared/scenes/aether/cbox-sphere/cbox-sphere-gpt.xml",
+        integrators: &["path", "gpt"],
+        claims: &[("gpt", "path")],
     },
 ];
 
@@ -45,6 +63,7 @@ struct Options {
     reference_seconds: f64,
     scale: f64,
     cache: PathBuf,
+    only: Option<String>,
 }
 
 fn options() -> Result<Options, String> {
@@ -54,6 +73,7 @@ fn options() -> Result<Options, String> {
         reference_seconds: 240.0,
         scale: 0.25,
         cache: root.join("target/equal-time"),
+        only: None,
     };
     let args: Vec<String> = std::env::args().skip(1).collect();
     for pair in args.chunks(2) {
@@ -69,6 +89,7 @@ fn options() -> Result<Options, String> {
             "--reference-seconds" => o.reference_seconds = number()?,
             "--scale" => o.scale = number()?.min(1.0),
             "--cache" => o.cache = PathBuf::from(value),
+            "--only" => o.only = Some(value.clone()),
             _ => return Err(format!("unknown option {flag}")),
         }
     }
@@ -85,23 +106,26 @@ fn load(case: &Case, scale: f64) -> Result<Scene, String> {
 }
 
 /// Renders `scene` with `integrator` for `seconds`, from the random
-/// streams that `seed` picks.
-fn run(
-    scene: &mut Scene,
-    integrator: &str,
-    seconds: f64,
-    seed: u64,
-) -> Result<integrators::render::Passes, String> {
+/// streams that `seed` picks; gradient-domain tracing's image is its
+/// reconstruction, made within the time.
+fn run(scene: &mut Scene, integrator: &str, seconds: f64, seed: u64) -> Result<Passes, String> {
     scene.integrator.name = integrator.into();
     let settings = Settings::new(1, seed);
     let stop = AtomicBool::new(false);
-    render_passes(
-        scene,
-        estimator(scene)?.as_ref(),
-        &settings,
-        Duration::from_secs_f64(seconds),
-        &stop,
-    )
+    let budget = Duration::from_secs_f64(seconds);
+    if integrator != "gpt" {
+        return render_passes(scene, estimator(scene)?.as_ref(), &settings, budget, &stop);
+    }
+    let start = Instant::now();
+    let tracer = GradientPathTracer::new(scene)?;
+    let (g, passes) = render_gradient_passes(scene, &tracer, &settings, budget, &stop)?;
+    Ok(Passes {
+        image: g.reconstruct(&scene.integrator.gradient),
+        passes,
+        seconds: start.elapsed().as_secs_f64(),
+        samples: g.samples,
+        rays: g.rays,
+    })
 }
 
 fn compare(case: &Case, o: &Options) -> Result<(), String> {
@@ -148,7 +172,7 @@ fn compare(case: &Case, o: &Options) -> Result<(), String> {
         "", "spp", "seconds", "samples/s", "mean Δ", "RMSE", "RMSE at time", "relMSE at t"
     );
     let mut at_time = HashMap::new();
-    for integrator in ["path", "bdpt", "tridir"] {
+    for &integrator in case.integrators {
         if integrator == "tridir" && scene.portals.is_empty() {
             println!("{integrator:<8} (the scene has no portal)");
             continue;
@@ -182,13 +206,24 @@ fn compare(case: &Case, o: &Options) -> Result<(), String> {
             );
         }
     };
-    verdict("bdpt", "path");
-    verdict("tridir", "bdpt");
+    for (a, b) in case.claims {
+        verdict(a, b);
+    }
     Ok(())
 }
 
 fn main() {
-    let result = options().and_then(|o| CASES.iter().try_for_each(|case| compare(case, &o)));
+    let result = options().and_then(|o| {
+        let wanted = |c: &&Case| {
+            o.only
+                .as_ref()
+                .is_none_or(|n| c.name.starts_with(n.as_str()))
+        };
+        CASES
+            .iter()
+            .filter(wanted)
+            .try_for_each(|case| compare(case, &o))
+    });
     if let Err(e) = result {
         eprintln!("equal_time: {e}");
         std::process::exit(1);

@@ -177,11 +177,7 @@ pub fn cornell_box(width: u32, height: u32, spp: u32) -> Scene {
             filter: "gaussian".to_string(),
             spp,
         },
-        integrator: IntegratorSettings {
-            name: "path".to_string(),
-            max_depth: -1,
-            rr_depth: 5,
-        },
+        integrator: IntegratorSettings::default(),
         // The opening under the lamp, a little wider than it: light reaches
         // the box through it, so tridirectional tracing has a portal here.
         portals: vec![quads(

@@ -42,6 +42,11 @@ impl Film {
         self.dropped.fetch_add(dropped, Ordering::Relaxed);
     }
 
+    /// Counts `dropped` samples more, dropped before they reached the film.
+    pub fn count_dropped(&mut self, dropped: u64) {
+        self.dropped.fetch_add(dropped, Ordering::Relaxed);
+    }
+
     /// Samples dropped as NaN or infinite.
     #[must_use]
     pub fn dropped(&self) -> u64 {

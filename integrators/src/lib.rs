@@ -9,6 +9,8 @@
 //! - [`bdpt`]: bidirectional path tracing over every (s, t), and
 //!   tridirectional path tracing with a portal segment; [`techniques`] holds
 //!   its optional (s, t) images;
+//! - [`gradient`]: gradient-domain path tracing, its images reconstructed
+//!   by [`poisson`];
 //! - [`estimator`]: what the [`render`] loop asks of each; [`film`],
 //!   [`output`] (EXR and PNG), the built-in [`cornell`] box.
 #![deny(unsafe_code)]
@@ -18,9 +20,11 @@ pub mod cornell;
 pub mod direct;
 pub mod estimator;
 pub mod film;
+pub mod gradient;
 pub mod light;
 pub mod output;
 pub mod path;
+pub mod poisson;
 pub mod render;
 pub mod techniques;
 

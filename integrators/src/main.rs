@@ -11,6 +11,7 @@ use aether_strategies::scene::Scene;
 use clap::{Parser, Subcommand, ValueEnum};
 use integrators::bdpt::Bdpt;
 use integrators::cornell::cornell_box;
+use integrators::gradient::{GradientPathTracer, render_gradients};
 use integrators::output::{Comparison, read_exr, write_exr, write_png};
 use integrators::render::{Settings, render, render_with};
 
@@ -69,6 +70,9 @@ enum Integrator {
     Direct,
     Bdpt,
     Tridir,
+    /// Gradient-domain path tracing: writes the reconstruction, and the
+    /// primal and gradient images beside it.
+    Gpt,
 }
 
 #[derive(clap::Args, Debug)]
@@ -161,6 +165,9 @@ fn run(args: RenderArgs) -> Result<(), String> {
         threads: args.threads,
         progress: true,
     };
+    if scene.integrator.name == "gpt" {
+        return run_gradients(&scene, &settings, &stop, &args.output, args.exposure);
+    }
     let r = match &args.techniques {
         Some(dir) => {
             let bdpt = match scene.integrator.name.as_str() {
@@ -198,6 +205,49 @@ fn run(args: RenderArgs) -> Result<(), String> {
         r.seconds,
         r.samples as f64 / r.seconds,
         r.rays as f64 / r.seconds / 1e6,
+    );
+    Ok(())
+}
+
+/// Gradient-domain path tracing: the reconstruction to `output`, and the
+/// primal image and the gradients beside it (`-primal`, `-dx`, `-dy`).
+fn run_gradients(
+    scene: &Scene,
+    settings: &Settings,
+    stop: &AtomicBool,
+    output: &std::path::Path,
+    exposure: f32,
+) -> Result<(), String> {
+    let tracer = GradientPathTracer::new(scene)?;
+    let g = render_gradients(scene, &tracer, settings, stop)?;
+    let image = g.reconstruct(&scene.integrator.gradient);
+    let (w, h, spp) = (g.width, g.height, settings.spp);
+    let beside = |suffix: &str| {
+        let stem = output
+            .file_stem()
+            .map_or("out".into(), |s| s.to_string_lossy());
+        output.with_file_name(format!("{stem}-{suffix}.exr"))
+    };
+    for (path, pixels) in [
+        (output.to_path_buf(), &image),
+        (beside("primal"), &g.primal),
+        (beside("dx"), &g.dx),
+        (beside("dy"), &g.dy),
+    ] {
+        write_exr(&path, w, h, pixels, spp, g.seconds)?;
+        // Gradients are signed: their previews show magnitudes.
+        let preview: Vec<[f32; 3]> = pixels.iter().map(|c| c.map(f32::abs)).collect();
+        write_png(&path.with_extension("png"), w, h, &preview, exposure)?;
+    }
+    if g.dropped > 0 {
+        eprintln!("{} NaN or infinite samples were dropped", g.dropped);
+    }
+    println!(
+        "{} (and -primal, -dx, -dy): {:.2} s, {:.0} samples/s, {:.2} Mrays/s",
+        output.display(),
+        g.seconds,
+        g.samples as f64 / g.seconds,
+        g.rays as f64 / g.seconds / 1e6,
     );
     Ok(())
 }

@@ -18,6 +18,7 @@ use crate::bdpt::Bdpt;
 use crate::direct::DirectLighting;
 use crate::estimator::{Estimator, Splats};
 use crate::film::{Film, SplatBuffer, is_valid};
+use crate::gradient::{GradientPathTracer, render_gradients};
 use crate::light::LightTracer;
 use crate::path::PathTracer;
 
@@ -79,7 +80,8 @@ pub struct Rendered {
 /// `bdpt` or `tridir`.
 ///
 /// # Errors
-/// For other names (MLT and gradient-domain tracing are not built yet), and
+/// For other names (MLT is not built yet; `gpt` is not an [`Estimator`]:
+/// see [`render`]), and
 /// where the estimator cannot be built (no portal for `tridir`).
 pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
     Ok(match scene.integrator.name.as_str() {
@@ -89,17 +91,24 @@ pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
         "bdpt" | "tridir" => Box::new(Bdpt::for_scene(scene)?),
         other => {
             return Err(format!(
-                "the integrator '{other}' is not available yet; use path, direct, light, bdpt or tridir"
+                "the integrator '{other}' is not available here; use path, direct, light, bdpt, tridir (or gpt through render)"
             ));
         }
     })
 }
 
-/// Renders `scene` with the integrator it names ([`estimator`]).
+/// Renders `scene` with the integrator it names ([`estimator`], or
+/// gradient-domain path tracing for `gpt`, whose film then holds the
+/// reconstruction).
 ///
 /// # Errors
 /// As [`estimator`], or if the worker threads cannot start.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
+    if scene.integrator.name == "gpt" {
+        let tracer = GradientPathTracer::new(scene)?;
+        let g = render_gradients(scene, &tracer, settings, stop)?;
+        return Ok(g.rendered(&g.reconstruct(&scene.integrator.gradient), settings.spp));
+    }
     render_with(scene, estimator(scene)?.as_ref(), settings, stop)
 }
 
@@ -116,6 +125,78 @@ pub fn render_with(
     stop: &AtomicBool,
 ) -> Result<Rendered, String> {
     let (w, h) = (scene.film.width, scene.film.height);
+    let film = Mutex::new(Film::new(w, h));
+    let splats = SplatBuffer::new(w, h);
+    let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
+        let mut scratch = Splats::new();
+        let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
+        for _ in 0..settings.spp {
+            let c = estimator.sample([x, y], rng, &mut scratch).to_array();
+            if is_valid(c) {
+                for k in 0..3 {
+                    sum[k] += f64::from(c[k]);
+                }
+            } else {
+                dropped += 1;
+            }
+            for (p, c) in scratch.drain(..) {
+                splats.splat(p, c.to_array());
+            }
+        }
+        (sum, dropped)
+    };
+    let store = |tile: Tile<([f64; 3], u64)>| {
+        let mut film = film
+            .lock()
+            .expect("no thread panics while holding the film");
+        for ([x, y], (sum, dropped)) in tile {
+            film.set_pixel(x, y, sum, settings.spp, dropped);
+        }
+    };
+    let run = render_tiles(scene, settings, stop, pixel, store)?;
+    let mut film = film.into_inner().expect("no thread panicked");
+    let samples = film.rendered_pixels() as u64 * u64::from(settings.spp);
+    film.add_splats(&splats, samples);
+    Ok(Rendered {
+        film,
+        seconds: run.seconds,
+        samples,
+        rays: run.rays,
+        complete: run.complete,
+    })
+}
+
+/// A finished tile: each pixel with what was computed for it.
+pub type Tile<T> = Vec<([u32; 2], T)>;
+
+/// How a tiled render went.
+#[derive(Clone, Copy, Debug)]
+pub struct TileRun {
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Rays cast.
+    pub rays: u64,
+    /// False if the time limit or a stop request cut the render short.
+    pub complete: bool,
+}
+
+/// The render loop shared by every integrator: the crop window's pixels by
+/// tiles in parallel, `pixel` run for each with the pixel's own random
+/// stream (from the seed and the pixel index only, so that the result does
+/// not depend on the threads), and each finished tile's results handed to
+/// `store`; with the settings' threads, progress bar, time limit and
+/// `stop` flag (tiles not yet started when time runs out are skipped).
+///
+/// # Errors
+/// If the worker threads cannot start.
+pub fn render_tiles<T: Send>(
+    scene: &Scene,
+    settings: &Settings,
+    stop: &AtomicBool,
+    pixel: impl Fn([u32; 2], &mut Pcg32) -> T + Sync,
+    store: impl Fn(Tile<T>) + Sync,
+) -> Result<TileRun, String> {
+    let w = scene.film.width;
     let [cx, cy, cw, ch] = scene.film.crop;
     let tiles: Vec<(u32, u32)> = (cy..cy + ch)
         .step_by(TILE as usize)
@@ -130,8 +211,6 @@ pub fn render_with(
         ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
             .expect("valid template"),
     );
-    let film = Mutex::new(Film::new(w, h));
-    let splats = SplatBuffer::new(w, h);
     let rays = AtomicU64::new(0);
     let start = Instant::now();
     let out_of_time = || {
@@ -153,35 +232,14 @@ pub fn render_with(
                 }
                 let rays_before = rays_cast();
                 let mut local = Vec::new();
-                let mut scratch = Splats::new();
                 for y in ty..(ty + TILE).min(cy + ch) {
                     for x in tx..(tx + TILE).min(cx + cw) {
-                        let mut rng =
-                            Pcg32::new(settings.seed, u64::from(y) * u64::from(w) + u64::from(x));
-                        let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
-                        for _ in 0..settings.spp {
-                            let c = estimator.sample([x, y], &mut rng, &mut scratch).to_array();
-                            if is_valid(c) {
-                                for k in 0..3 {
-                                    sum[k] += f64::from(c[k]);
-                                }
-                            } else {
-                                dropped += 1;
-                            }
-                            for (p, c) in scratch.drain(..) {
-                                splats.splat(p, c.to_array());
-                            }
-                        }
-                        local.push((x, y, sum, settings.spp, dropped));
+                        let stream = u64::from(y) * u64::from(w) + u64::from(x);
+                        let mut rng = Pcg32::new(settings.seed, stream);
+                        local.push(([x, y], pixel([x, y], &mut rng)));
                     }
                 }
-                let mut film = film
-                    .lock()
-                    .expect("no thread panics while holding the film");
-                for (x, y, sum, n, dropped) in local {
-                    film.set_pixel(x, y, sum, n, dropped);
-                }
-                drop(film);
+                store(local);
                 rays.fetch_add(rays_cast() - rays_before, Ordering::Relaxed);
                 bar.inc(1);
                 true
@@ -191,13 +249,8 @@ pub fn render_with(
             .all(|done| done)
     });
     bar.finish_and_clear();
-    let mut film = film.into_inner().expect("no thread panicked");
-    let samples = film.rendered_pixels() as u64 * u64::from(settings.spp);
-    film.add_splats(&splats, samples);
-    Ok(Rendered {
-        film,
+    Ok(TileRun {
         seconds: start.elapsed().as_secs_f64(),
-        samples,
         rays: rays.load(Ordering::Relaxed),
         complete,
     })
@@ -232,39 +285,57 @@ pub fn render_passes(
     budget: Duration,
     stop: &AtomicBool,
 ) -> Result<Passes, String> {
-    let start = Instant::now();
     let mut sum = vec![[0.0f64; 3]; scene.film.width as usize * scene.film.height as usize];
-    let mut out = Passes {
-        image: Vec::new(),
-        passes: 0,
-        seconds: 0.0,
-        samples: 0,
-        rays: 0,
-    };
-    while out.passes == 0 || (start.elapsed() < budget && !stop.load(Ordering::Relaxed)) {
-        let pass = Settings {
-            // Distant, distinct seeds: each pass draws from fresh streams.
-            seed: settings
-                .seed
-                .wrapping_add(u64::from(out.passes).wrapping_mul(0x9e37_79b9_7f4a_7c15)),
-            time_limit: None,
-            progress: false,
-            ..settings.clone()
-        };
-        let r = render_with(scene, estimator, &pass, stop)?;
+    let (mut samples, mut rays) = (0, 0);
+    let (passes, seconds) = repeat_passes(settings, budget, stop, |pass| {
+        let r = render_with(scene, estimator, pass, stop)?;
         for (s, c) in sum.iter_mut().zip(r.film.image()) {
             for k in 0..3 {
                 s[k] += f64::from(c[k]);
             }
         }
-        out.passes += 1;
-        out.samples += r.samples;
-        out.rays += r.rays;
+        samples += r.samples;
+        rays += r.rays;
+        Ok(())
+    })?;
+    let n = f64::from(passes);
+    Ok(Passes {
+        image: sum.iter().map(|s| s.map(|v| (v / n) as f32)).collect(),
+        passes,
+        seconds,
+        samples,
+        rays,
+    })
+}
+
+/// Runs `pass` with the settings of each pass (its own seed, no time limit
+/// or progress bar) until `budget` has passed (at least once, and the pass
+/// under way is finished) or `stop` is set; returns the number of passes
+/// and the seconds they took.
+///
+/// # Errors
+/// The first error of a pass.
+pub fn repeat_passes(
+    settings: &Settings,
+    budget: Duration,
+    stop: &AtomicBool,
+    mut pass: impl FnMut(&Settings) -> Result<(), String>,
+) -> Result<(u32, f64), String> {
+    let start = Instant::now();
+    let mut passes = 0u32;
+    while passes == 0 || (start.elapsed() < budget && !stop.load(Ordering::Relaxed)) {
+        pass(&Settings {
+            // Distant, distinct seeds: each pass draws from fresh streams.
+            seed: settings
+                .seed
+                .wrapping_add(u64::from(passes).wrapping_mul(0x9e37_79b9_7f4a_7c15)),
+            time_limit: None,
+            progress: false,
+            ..settings.clone()
+        })?;
+        passes += 1;
     }
-    let n = f64::from(out.passes);
-    out.image = sum.iter().map(|s| s.map(|v| (v / n) as f32)).collect();
-    out.seconds = start.elapsed().as_secs_f64();
-    Ok(out)
+    Ok((passes, start.elapsed().as_secs_f64()))
 }
 
 #[cfg(test)]

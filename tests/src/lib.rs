@@ -7,8 +7,11 @@
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+use aether_core::{Pcg32, RandomSequence};
+use aether_strategies::camera::Camera;
 use aether_strategies::scene::Scene;
 use aether_strategies::spectrum::luminance;
+use aether_strategies::vertex::SceneVertex;
 use integrators::render::{Settings, render};
 
 /// Loads a scene from Mitsuba XML text, written to a fresh temporary file
@@ -52,19 +55,37 @@ impl Estimate {
     #[must_use]
     pub fn of(scene: &mut Scene, integrator: &str, renders: u32, spp: u32) -> Estimate {
         scene.integrator.name = integrator.to_string();
-        let n = scene.film.width as usize * scene.film.height as usize;
+        let images: Vec<Vec<[f32; 3]>> = (1..=u64::from(renders))
+            .map(|seed| {
+                let settings = Settings::new(spp, seed);
+                let r = render(scene, &settings, &AtomicBool::new(false))
+                    .unwrap_or_else(|e| panic!("{integrator}: {e}"));
+                assert_eq!(r.film.dropped(), 0, "{integrator} dropped samples");
+                r.film.image()
+            })
+            .collect();
+        Estimate::from_images(integrator, &images)
+    }
+
+    /// The per-pixel luminance estimate from independent `images` (signed
+    /// values, such as gradients, are fine).
+    ///
+    /// # Panics
+    /// If there are fewer than two images or their sizes differ.
+    #[must_use]
+    pub fn from_images(name: &str, images: &[Vec<[f32; 3]>]) -> Estimate {
+        assert!(images.len() >= 2, "a variance needs two images");
+        let n = images[0].len();
         let (mut sum, mut sum2) = (vec![0.0; n], vec![0.0; n]);
-        for seed in 1..=u64::from(renders) {
-            let settings = Settings::new(spp, seed);
-            let r = render(scene, &settings, &AtomicBool::new(false))
-                .unwrap_or_else(|e| panic!("{integrator}: {e}"));
-            assert_eq!(r.film.dropped(), 0, "{integrator} dropped samples");
-            for (i, c) in r.film.image().iter().enumerate() {
+        for image in images {
+            assert_eq!(image.len(), n, "images of one size");
+            for (i, c) in image.iter().enumerate() {
                 let y = luminance(*c);
                 sum[i] += y;
                 sum2[i] += y * y;
             }
         }
+        let renders = images.len() as u32;
         let k = f64::from(renders);
         let mean: Vec<f64> = sum.iter().map(|s| s / k).collect();
         let variance = sum2
@@ -73,7 +94,7 @@ impl Estimate {
             .map(|(s2, m)| ((s2 - k * m * m) / (k - 1.0)).max(0.0) / k)
             .collect();
         Estimate {
-            integrator: integrator.to_string(),
+            integrator: name.to_string(),
             renders,
             mean,
             variance,
@@ -91,6 +112,29 @@ impl Estimate {
     pub fn image_mean_error(&self) -> f64 {
         self.variance.iter().sum::<f64>().sqrt() / self.mean.len() as f64
     }
+}
+
+/// Pixels whose camera rays (16 per pixel) first hit a vertex for which
+/// `what` holds.
+///
+/// # Panics
+/// If the scene's camera cannot be built.
+#[must_use]
+pub fn seeing(scene: &Scene, what: impl Fn(&SceneVertex) -> bool) -> Vec<bool> {
+    let camera = Camera::new(scene).unwrap();
+    let [w, h] = camera.size();
+    let lens = camera.position();
+    let mut rng = Pcg32::new(0, 0);
+    (0..w * h)
+        .map(|i| {
+            let look = camera.direction(scene, [i % w, i / w]);
+            (0..16).any(|_| {
+                let mut p = RandomSequence::new();
+                p.append(&lens).append(&look).sample(&mut rng);
+                p.vertices().get(1).is_some_and(&what)
+            })
+        })
+        .collect()
 }
 
 /// How two estimates of one image compare.

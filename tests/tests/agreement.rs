@@ -11,14 +11,11 @@
 //! are left out of the means: their edge noise would need far more
 //! samples; the per-pixel test covers them).
 
-use aether_core::{Pcg32, RandomSequence};
 use aether_strategies::bsdf::Bsdf;
-use aether_strategies::camera::Camera;
 use aether_strategies::lights::Lights;
 use aether_strategies::scene::Scene;
-use aether_strategies::vertex::SceneVertex;
 use integrators::cornell::cornell_box;
-use tests::{Estimate, assert_agree, scene_from};
+use tests::{Estimate, assert_agree, scene_from, seeing};
 
 const RENDERS: u32 = 8;
 
@@ -56,25 +53,6 @@ fn check(name: &str, scene: &mut Scene, integrators: &[(&str, u32)], skip: &[(&s
             .map(|(_, m)| &m[..]);
         assert_agree(name, (&other, &reference), mask, Some(&edges), 5e-3);
     }
-}
-
-/// Pixels whose camera rays (16 per pixel) first hit a vertex for which
-/// `what` holds.
-fn seeing(scene: &Scene, what: impl Fn(&SceneVertex) -> bool) -> Vec<bool> {
-    let camera = Camera::new(scene).unwrap();
-    let [w, h] = camera.size();
-    let lens = camera.position();
-    let mut rng = Pcg32::new(0, 0);
-    (0..w * h)
-        .map(|i| {
-            let look = camera.direction(scene, [i % w, i / w]);
-            (0..16).any(|_| {
-                let mut p = RandomSequence::new();
-                p.append(&lens).append(&look).sample(&mut rng);
-                p.vertices().get(1).is_some_and(&what)
-            })
-        })
-        .collect()
 }
 
 /// Pixels whose camera rays see a purely specular surface first: light

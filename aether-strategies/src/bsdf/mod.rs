@@ -27,7 +27,7 @@ pub use fresnel::{fresnel_conductor, fresnel_dielectric, fresnel_diffuse_reflect
 pub use lobes::Lobes;
 pub use microfacet::{normal_density, shadowing, smith_g1};
 
-use crate::scene::{Material, Scene};
+use crate::scene::{Material, Roughness, Scene};
 use crate::vertex::{SceneVertex, Site};
 
 /// Which end of the path a sampled direction leads away from.
@@ -123,6 +123,22 @@ impl<'s> Bsdf<'s> {
                 ..
             }
         )
+    }
+
+    /// True if every lobe is rougher than `threshold` (microfacet α along
+    /// both axes), so that a path may reach or leave this vertex along any
+    /// direction and keep a comparable value: where a gradient-domain shift
+    /// may reconnect. Diffuse surfaces always are; smooth ones never.
+    #[must_use]
+    pub fn is_rougher_than(&self, threshold: f32) -> bool {
+        let rough =
+            |r: &Option<Roughness>| r.is_some_and(|r| r.alpha[0].min(r.alpha[1]) > threshold);
+        match self.material {
+            Material::Conductor { roughness, .. }
+            | Material::Dielectric { roughness, .. }
+            | Material::Plastic { roughness, .. } => rough(roughness),
+            Material::Diffuse { .. } | Material::BumpMap { .. } | Material::TwoSided(_) => true,
+        }
     }
 
     /// A rough measure of how much of the light arriving here the surface

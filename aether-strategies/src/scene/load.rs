@@ -229,6 +229,46 @@ pub struct IntegratorSettings {
     pub max_depth: i64,
     /// Depth at which Russian roulette starts.
     pub rr_depth: i64,
+    /// Gradient-domain path tracing's parameters.
+    pub gradient: GradientSettings,
+}
+
+impl Default for IntegratorSettings {
+    /// Path tracing without a depth limit, roulette from depth 5.
+    fn default() -> Self {
+        IntegratorSettings {
+            name: "path".into(),
+            max_depth: -1,
+            rr_depth: 5,
+            gradient: GradientSettings::default(),
+        }
+    }
+}
+
+/// Parameters of gradient-domain path tracing (Aether's `mygpt`, Kettunen
+/// et al.'s `gpt`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GradientSettings {
+    /// Surfaces with a lobe at most this rough (microfacet α) count as
+    /// specular: shifts replay through them instead of reconnecting
+    /// (`specularRoughnessThreshold`, or `shiftThreshold`; 0.02).
+    pub roughness_threshold: f32,
+    /// Reconstruct in the L1 norm (iteratively reweighted) rather than L2
+    /// (`doL1Reconstruction`, or `reconstructL1`; true).
+    pub l1: bool,
+    /// Weight α of the primal image against the gradients in the screened
+    /// Poisson reconstruction (`reconstructAlpha`; 0.04).
+    pub alpha: f32,
+}
+
+impl Default for GradientSettings {
+    fn default() -> Self {
+        GradientSettings {
+            roughness_threshold: 0.02,
+            l1: true,
+            alpha: 0.04,
+        }
+    }
 }
 
 /// A loaded scene.
@@ -300,11 +340,7 @@ impl Scene {
         let (camera, film) = camera_and_film(sensor)?;
         let integrator = match root.children_of(Category::Integrator).next() {
             Some(i) => integrator(i)?,
-            None => IntegratorSettings {
-                name: "path".into(),
-                max_depth: -1,
-                rr_depth: 5,
-            },
+            None => IntegratorSettings::default(),
         };
         // Only the objects the scene uses: declared-but-unreferenced BSDFs
         // and textures are not reported.
@@ -941,9 +977,35 @@ fn integrator(o: &Object) -> Result<IntegratorSettings, SceneError> {
         "ptracer" | "myptracer" => "light",
         other => return Err(o.error(format!("the integrator '{other}' is not known"))),
     };
+    let defaults = GradientSettings::default();
+    let either = |a: &str, b: &str| {
+        if o.property(a).is_some() {
+            a.to_string()
+        } else {
+            b.to_string()
+        }
+    };
+    let threshold = o.float(
+        &either("specularRoughnessThreshold", "shiftThreshold"),
+        f64::from(defaults.roughness_threshold),
+    )?;
+    let alpha = o.float("reconstructAlpha", f64::from(defaults.alpha))?;
+    if !(threshold >= 0.0 && threshold.is_finite()) {
+        return Err(o.error(format!(
+            "the roughness threshold must be a number ≥ 0, not {threshold}"
+        )));
+    }
+    if !(alpha > 0.0 && alpha.is_finite()) {
+        return Err(o.error(format!("reconstructAlpha must be positive, not {alpha}")));
+    }
     Ok(IntegratorSettings {
         name: name.to_string(),
         max_depth: o.integer("maxDepth", -1)?,
         rr_depth: o.integer("rrDepth", 5)?,
+        gradient: GradientSettings {
+            roughness_threshold: threshold as f32,
+            l1: o.boolean(&either("doL1Reconstruction", "reconstructL1"), defaults.l1)?,
+            alpha: alpha as f32,
+        },
     })
 }

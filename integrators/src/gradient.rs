@@ -1,0 +1,543 @@
+//! Gradient-domain path tracing (Lehtinen et al. 2013, Kettunen et al.
+//! 2015): every path of a pixel is shifted into its four neighbours, and
+//! each pair of adjacent pixels gets both its difference and a second
+//! estimate of each pixel from the pair.
+//!
+//! The shift replays the base path's uniforms in the neighbour pixel (the
+//! camera ray moves by one pixel, then every step samples again from the
+//! same uniforms) until the first pair of rough vertices, where the offset
+//! reconnects to the base path and copies it from there. Its Jacobian is a
+//! ratio of the language's conditional densities of the replayed steps
+//! ([`replay_jacobian`]), and the MIS weights between the base path's
+//! techniques and those of the neighbour shifted back come from the same
+//! densities ([`weight_of_shift`]). No density is written here.
+//!
+//! For a base path x̄ of pixel i sampled by technique t with density
+//! p_t(x̄), and its offset ȳ in neighbour j with Jacobian J, the pair adds
+//! w·f(x̄)/p_t(x̄) to pixel i's estimate and w·f(ȳ)·J/p_t(x̄) to pixel j's,
+//! where w weighs t against every technique of both pixels. Summed with the
+//! paths of j shifted into i, the two are unbiased estimates of both
+//! pixels, so their difference estimates the gradient, and the mean over a
+//! pixel's neighbours estimates the pixel (the primal image).
+
+use std::sync::Mutex;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use aether_core::{
+    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef, densities_of_split,
+    replay_jacobian, weight_of_shift,
+};
+use aether_strategies::bsdf::Transport;
+use aether_strategies::camera::{Camera, CameraDirection};
+use aether_strategies::integrand::{Integrand, visible};
+use aether_strategies::lights::Lights;
+use aether_strategies::scattering::{BsdfSampling, Roulette};
+use aether_strategies::scene::{GradientSettings, Scene};
+use aether_strategies::subpath::{End, Subpath};
+use aether_strategies::vertex::SceneVertex;
+use glam::DVec3;
+use smallvec::SmallVec;
+
+use crate::estimator::path_limits;
+use crate::film::Film;
+use crate::film::is_valid;
+use crate::poisson::{Norm, reconstruct};
+use crate::render::{Rendered, Settings, Tile, render_tiles, repeat_passes};
+
+/// The four neighbours of a pixel, in the order of [`PairSums`]: left,
+/// right, up, down. Directions 2k and 2k + 1 are opposite.
+pub const NEIGHBOURS: [[i64; 2]; 4] = [[-1, 0], [1, 0], [0, -1], [0, 1]];
+
+/// One pixel's estimates from its base paths, per neighbour: `base[d]`
+/// estimates this pixel and `offset[d]` the neighbour in direction `d`,
+/// both as part of the pair of the two pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PairSums {
+    /// The base paths' MIS-weighted estimates of this pixel.
+    pub base: [DVec3; 4],
+    /// Their offset paths' MIS-weighted estimates of the neighbour.
+    pub offset: [DVec3; 4],
+}
+
+impl PairSums {
+    fn add(&mut self, other: &PairSums) {
+        for d in 0..4 {
+            self.base[d] += other.base[d];
+            self.offset[d] += other.offset[d];
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.base
+            .iter()
+            .chain(&self.offset)
+            .all(|c| is_valid(c.as_vec3().to_array()))
+    }
+}
+
+/// A path tracer with next-event estimation whose every path is shifted
+/// into the four neighbouring pixels.
+#[derive(Debug)]
+pub struct GradientPathTracer<'s> {
+    scene: &'s Scene,
+    camera: Camera,
+    lights: Option<Lights<'s>>,
+    max_depth: usize,
+    roulette: Roulette,
+    heuristic: Heuristic,
+    threshold: f32,
+}
+
+/// The shift of the base path into one neighbour, as far as it has got.
+struct Offset<'a> {
+    path: RandomSequence<'a, SceneVertex>,
+    sub: Subpath<'a>,
+    importance: f64,
+    /// |∂ȳ/∂x̄| of the vertices replayed so far.
+    jacobian: f64,
+    /// Where the offset reconnected to the base path, which it copies from
+    /// there on.
+    joined_at: Option<usize>,
+}
+
+impl<'s> GradientPathTracer<'s> {
+    /// The tracer of `scene`, with its integrator's depth limits, roughness
+    /// threshold, and the power heuristic.
+    ///
+    /// # Errors
+    /// If the camera cannot be built.
+    pub fn new(scene: &'s Scene) -> Result<Self, String> {
+        let (max_vertices, roulette) = path_limits(scene);
+        Ok(GradientPathTracer {
+            scene,
+            camera: Camera::new(scene)?,
+            lights: Lights::new(scene),
+            max_depth: max_vertices.saturating_sub(1),
+            roulette,
+            heuristic: Heuristic::POWER,
+            threshold: scene.integrator.gradient.roughness_threshold,
+        })
+    }
+
+    /// The neighbour of `pixel` in direction `d` of [`NEIGHBOURS`], if it is
+    /// in the crop window.
+    #[must_use]
+    pub fn neighbour(&self, pixel: [u32; 2], d: usize) -> Option<[u32; 2]> {
+        let [cx, cy, cw, ch] = self.scene.film.crop.map(i64::from);
+        let x = i64::from(pixel[0]) + NEIGHBOURS[d][0];
+        let y = i64::from(pixel[1]) + NEIGHBOURS[d][1];
+        let inside = (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y);
+        inside.then_some([x as u32, y as u32])
+    }
+
+    /// One base path of `pixel` and its shifts into the neighbours.
+    pub fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32) -> PairSums {
+        let mut out = PairSums::default();
+        let Some(lights) = &self.lights else {
+            return out;
+        };
+        let scene = self.scene;
+        let neighbours: [Option<[u32; 2]>; 4] = std::array::from_fn(|d| self.neighbour(pixel, d));
+        let lens = self.camera.position();
+        // Index 0: this pixel; 1 + d: the neighbour in direction d.
+        let looks: [CameraDirection<'_>; 5] = std::array::from_fn(|k| {
+            let p = if k == 0 { None } else { neighbours[k - 1] };
+            self.camera.direction(scene, p.unwrap_or(pixel))
+        });
+        let bsdf = BsdfSampling::new(scene, Transport::Radiance, self.roulette);
+        let direct = lights.direct();
+        let f = Integrand::new(scene, &self.camera, lights);
+        let cameras: [[StrategyRef<'_, SceneVertex>; 3]; 5] = std::array::from_fn(|k| {
+            [&lens as &dyn DynStrategy<_>, &looks[k], &bsdf].map(StrategyRef::One)
+        });
+        let by_light = [(StrategyRef::One(&direct as &dyn DynStrategy<_>), false)];
+        let splits = |n: usize| -> SmallVec<[Split<'_, SceneVertex>; 2]> {
+            // What the camera sees first has one technique.
+            let by_bsdf = Split::new(n, &[]);
+            if n == 2 {
+                [by_bsdf].into_iter().collect()
+            } else {
+                [by_bsdf, Split::new(n - 1, &by_light)]
+                    .into_iter()
+                    .collect()
+            }
+        };
+
+        let start = rng.clone();
+        let mut base = RandomSequence::new();
+        if !base.append(&lens).append_sample(&looks[0], rng) {
+            return out;
+        }
+        let importance = f.importance(pixel, base.vertices());
+        let mut eye = Subpath::of(f, End::Camera, base.vertices());
+        let mut offsets: [Option<Offset<'_>>; 4] = std::array::from_fn(|d| {
+            let j = neighbours[d]?;
+            let mut path = RandomSequence::new();
+            if !path
+                .append(&lens)
+                .append_sample(&looks[1 + d], &mut start.clone())
+            {
+                return None;
+            }
+            Some(Offset {
+                sub: Subpath::of(f, End::Camera, path.vertices()),
+                importance: f.importance(j, path.vertices()),
+                jacobian: replay_jacobian(&base, &path, 0..2),
+                joined_at: None,
+                path,
+            })
+        });
+        // Adds one base path (technique `own`, value `fx`) and the offsets'
+        // paths of the same length, with their values.
+        let mut contribute = |own: usize,
+                              fx: DVec3,
+                              base: &RandomSequence<'_, SceneVertex>,
+                              offsets: &[Option<(&RandomSequence<'_, SceneVertex>, DVec3, f64)>;
+                                   4]| {
+            let n = base.len();
+            let splits = splits(n);
+            let dx = densities_of_split(base, &cameras[0], &[], &splits, None);
+            let px = dx[own].value();
+            // Long paths through near-specular surfaces can overflow f or
+            // p: such a path contributes nothing.
+            if !(px > 0.0 && px.is_finite() && fx.is_finite()) {
+                return;
+            }
+            for d in 0..4 {
+                let Some(_) = neighbours[d] else { continue };
+                let (fy, w, jacobian) = match offsets[d] {
+                    Some((path, fy, jacobian))
+                        if fy.is_finite() && (fx != DVec3::ZERO || fy != DVec3::ZERO) =>
+                    {
+                        let dy = densities_of_split(path, &cameras[1 + d], &[], &splits, None);
+                        let w = weight_of_shift(&dx, Some((&dy, jacobian)), own, self.heuristic);
+                        (fy, w, jacobian)
+                    }
+                    _ if fx != DVec3::ZERO => (
+                        DVec3::ZERO,
+                        weight_of_shift(&dx, None, own, self.heuristic),
+                        0.0,
+                    ),
+                    _ => continue,
+                };
+                out.base[d] += fx * (w / px);
+                out.offset[d] += fy * (w * jacobian / px);
+            }
+        };
+        loop {
+            let n = base.len();
+            if n >= 2 {
+                let shifted = offsets.each_ref().map(|o| {
+                    let o = o.as_ref().filter(|o| o.path.len() == n)?;
+                    Some((&o.path, o.sub.emitted(n) * o.importance, o.jacobian))
+                });
+                contribute(0, eye.emitted(n) * importance, &base, &shifted);
+            }
+            if n <= self.max_depth && eye.connectible(n - 1) {
+                let replay = rng.clone();
+                if base.append_sample(&direct, rng) {
+                    let lit = eye.connect_lamp(n, &base.vertices()[n]);
+                    let mut jacobians = [0.0; 4];
+                    for (o, jacobian) in offsets.iter_mut().zip(&mut jacobians) {
+                        let Some(o) = o else { continue };
+                        *jacobian = if o.joined_at.is_some() {
+                            o.path.extend_from(&base, n..n + 1, false);
+                            o.jacobian
+                        } else if o.sub.connectible(n - 1)
+                            && o.path.append_sample(&direct, &mut replay.clone())
+                        {
+                            o.jacobian * replay_jacobian(&base, &o.path, n..n + 1)
+                        } else {
+                            0.0
+                        };
+                    }
+                    let shifted = std::array::from_fn(|d| {
+                        let o = offsets[d].as_ref().filter(|o| o.path.len() == n + 1)?;
+                        // Reconnected before the last vertex, the offset
+                        // shares the base path's last edge and the factors
+                        // beyond its last vertex: no second shadow ray.
+                        let x = eye.product(n - 1);
+                        let fy = if o.joined_at.is_some_and(|k| k + 2 <= n) && x.min_element() > 0.0
+                        {
+                            o.sub.product(n - 1) * (lit / x)
+                        } else {
+                            o.sub.connect_lamp(n, &o.path.vertices()[n])
+                        };
+                        Some((&o.path, fy * o.importance, jacobians[d]))
+                    });
+                    contribute(1, lit * importance, &base, &shifted);
+                }
+                base.truncate(n);
+                for o in offsets.iter_mut().flatten() {
+                    o.path.truncate(n);
+                }
+            }
+            if n > self.max_depth {
+                break;
+            }
+            let replay = rng.clone();
+            if !base.append_sample(&bsdf, rng) {
+                break;
+            }
+            eye.push(base.vertices()[n]);
+            for o in &mut offsets {
+                if o.as_mut()
+                    .is_some_and(|o| !self.advance(o, &base, &eye, &bsdf, &replay))
+                {
+                    *o = None;
+                }
+            }
+        }
+        out
+    }
+
+    /// Moves `offset` on to the base path's new last vertex x: copied if the
+    /// offset has reconnected; reconnected (if the edge to x is clear) when
+    /// x and the last vertices of both paths are rough; replayed from
+    /// `replay`'s uniforms otherwise. False if the shift fails.
+    ///
+    /// The shift must be its own inverse, so every decision is symmetric in
+    /// the two paths: where both last vertices are rough, x is specular and
+    /// the replayed vertex rough, the shift back would reconnect to that
+    /// vertex, and this one fails instead.
+    fn advance<'a>(
+        &self,
+        offset: &mut Offset<'a>,
+        base: &RandomSequence<'a, SceneVertex>,
+        eye: &Subpath<'_>,
+        bsdf: &'a BsdfSampling<'a>,
+        replay: &Pcg32,
+    ) -> bool {
+        let n = base.len() - 1;
+        let x = base.vertices()[n];
+        let rough = |s: &Subpath<'_>, i: usize| {
+            s.bsdf(i).is_some_and(|b| b.is_rougher_than(self.threshold))
+        };
+        let both_rough = rough(eye, n - 1) && rough(&offset.sub, n - 1);
+        if offset.joined_at.is_some() || (both_rough && rough(eye, n)) {
+            if offset.joined_at.is_none() && !visible(self.scene, &offset.sub.vertices()[n - 1], &x)
+            {
+                return false;
+            }
+            offset.path.extend_from(base, n..n + 1, false);
+            offset.sub.push(x);
+            offset.joined_at.get_or_insert(n);
+            return true;
+        }
+        if !offset.path.append_sample(bsdf, &mut replay.clone()) {
+            return false;
+        }
+        offset.jacobian *= replay_jacobian(base, &offset.path, n..n + 1);
+        offset.sub.push(offset.path.vertices()[n]);
+        !(both_rough && rough(&offset.sub, n))
+            && offset.jacobian.is_finite()
+            && offset.jacobian > 0.0
+    }
+}
+
+/// What a gradient-domain render produced: the primal image and the
+/// horizontal and vertical gradients, row by row.
+#[derive(Debug)]
+pub struct Gradients {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Each pixel's estimate: the mean of its pairs' estimates.
+    pub primal: Vec<[f32; 3]>,
+    /// I(x + 1, y) − I(x, y) (zero in the last column and outside the crop).
+    pub dx: Vec<[f32; 3]>,
+    /// I(x, y + 1) − I(x, y) (zero in the last row and outside the crop).
+    pub dy: Vec<[f32; 3]>,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Base paths traced.
+    pub samples: u64,
+    /// Rays cast.
+    pub rays: u64,
+    /// Samples dropped as NaN, infinite or negative.
+    pub dropped: u64,
+    /// False if the time limit or a stop request cut the render short.
+    pub complete: bool,
+    /// Which pixels were rendered.
+    pub rendered: Vec<bool>,
+}
+
+impl Gradients {
+    /// Adds another render's images and counts to these.
+    fn accumulate(&mut self, other: &Gradients) {
+        let images = [
+            (&mut self.primal, &other.primal),
+            (&mut self.dx, &other.dx),
+            (&mut self.dy, &other.dy),
+        ];
+        for (mine, theirs) in images {
+            for (a, b) in mine.iter_mut().zip(theirs) {
+                *a = [0, 1, 2].map(|k| a[k] + b[k]);
+            }
+        }
+        for (a, b) in self.rendered.iter_mut().zip(&other.rendered) {
+            *a |= b;
+        }
+        self.samples += other.samples;
+        self.rays += other.rays;
+        self.dropped += other.dropped;
+        self.complete &= other.complete;
+    }
+
+    /// The screened Poisson reconstruction with the scene's α and norm.
+    #[must_use]
+    pub fn reconstruct(&self, settings: &GradientSettings) -> Vec<[f32; 3]> {
+        let norm = if settings.l1 { Norm::L1 } else { Norm::L2 };
+        let (w, h) = (self.width, self.height);
+        reconstruct(w, h, &self.primal, &self.dx, &self.dy, settings.alpha, norm)
+    }
+
+    /// A render result whose film holds `image` at the rendered pixels.
+    #[must_use]
+    pub fn rendered(&self, image: &[[f32; 3]], spp: u32) -> Rendered {
+        let mut film = Film::new(self.width, self.height);
+        for (i, c) in image.iter().enumerate() {
+            if self.rendered[i] {
+                let (x, y) = (i as u32 % self.width, i as u32 / self.width);
+                let sum = c.map(|v| f64::from(v) * f64::from(spp));
+                film.set_pixel(x, y, sum, spp, 0);
+            }
+        }
+        film.count_dropped(self.dropped);
+        Rendered {
+            film,
+            seconds: self.seconds,
+            samples: self.samples,
+            rays: self.rays,
+            complete: self.complete,
+        }
+    }
+}
+
+/// Renders the primal image and the gradients of `scene` with `tracer`.
+///
+/// # Errors
+/// If the crop window has a single pixel (no pair to shift across) or the
+/// worker threads cannot start.
+pub fn render_gradients(
+    scene: &Scene,
+    tracer: &GradientPathTracer<'_>,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<Gradients, String> {
+    let (w, h) = (scene.film.width, scene.film.height);
+    let [_, _, cw, ch] = scene.film.crop;
+    if u64::from(cw) * u64::from(ch) < 2 {
+        return Err("gradient-domain rendering needs at least two pixels".to_string());
+    }
+    let sums: Mutex<Vec<Option<PairSums>>> = Mutex::new(vec![None; w as usize * h as usize]);
+    let dropped = Mutex::new(0u64);
+    let pixel = |p: [u32; 2], rng: &mut Pcg32| {
+        let (mut sum, mut lost) = (PairSums::default(), 0u64);
+        for _ in 0..settings.spp {
+            let s = tracer.sample(p, rng);
+            if s.is_valid() {
+                sum.add(&s);
+            } else {
+                lost += 1;
+            }
+        }
+        (sum, lost)
+    };
+    let store = |tile: Tile<(PairSums, u64)>| {
+        let mut sums = sums
+            .lock()
+            .expect("no thread panics while holding the sums");
+        let mut lost = 0;
+        for ([x, y], (s, l)) in tile {
+            sums[(y * w + x) as usize] = Some(s);
+            lost += l;
+        }
+        *dropped.lock().expect("no thread panics while counting") += lost;
+    };
+    let run = render_tiles(scene, settings, stop, pixel, store)?;
+    let sums = sums.into_inner().expect("no thread panicked");
+    let spp = f64::from(settings.spp);
+    let at = |x: i64, y: i64| -> Option<&PairSums> {
+        if x < 0 || y < 0 || x >= i64::from(w) || y >= i64::from(h) {
+            return None;
+        }
+        sums[(y * i64::from(w) + x) as usize].as_ref()
+    };
+    let mut g = Gradients {
+        width: w,
+        height: h,
+        primal: vec![[0.0; 3]; sums.len()],
+        dx: vec![[0.0; 3]; sums.len()],
+        dy: vec![[0.0; 3]; sums.len()],
+        seconds: run.seconds,
+        samples: sums.iter().flatten().count() as u64 * u64::from(settings.spp),
+        rays: run.rays,
+        dropped: dropped.into_inner().expect("no thread panicked"),
+        complete: run.complete,
+        rendered: sums.iter().map(Option::is_some).collect(),
+    };
+    let rgb = |v: DVec3| (v / spp).as_vec3().to_array();
+    for y in 0..i64::from(h) {
+        for x in 0..i64::from(w) {
+            let Some(own) = at(x, y) else { continue };
+            let i = (y * i64::from(w) + x) as usize;
+            let (mut primal, mut pairs) = (DVec3::ZERO, 0.0);
+            for (d, [ox, oy]) in NEIGHBOURS.iter().enumerate() {
+                let Some(other) = at(x + ox, y + oy) else {
+                    continue;
+                };
+                // The pair's estimate of this pixel: this pixel's base paths
+                // and the neighbour's offsets into it.
+                primal += own.base[d] + other.offset[d ^ 1];
+                pairs += 1.0;
+                // Right and down: the pair's estimate of the difference.
+                if d == 1 || d == 3 {
+                    let difference =
+                        (own.offset[d] + other.base[d ^ 1]) - (own.base[d] + other.offset[d ^ 1]);
+                    let image = if d == 1 { &mut g.dx } else { &mut g.dy };
+                    image[i] = rgb(difference);
+                }
+            }
+            if pairs > 0.0 {
+                g.primal[i] = rgb(primal / pairs);
+            }
+        }
+    }
+    Ok(g)
+}
+
+/// Renders whole passes of gradients until `budget` has passed, as
+/// [`render_passes`](crate::render::render_passes) does for images, and
+/// averages them; returns the average and the number of passes.
+///
+/// # Errors
+/// As [`render_gradients`].
+pub fn render_gradient_passes(
+    scene: &Scene,
+    tracer: &GradientPathTracer<'_>,
+    settings: &Settings,
+    budget: Duration,
+    stop: &AtomicBool,
+) -> Result<(Gradients, u32), String> {
+    let mut total: Option<Gradients> = None;
+    let (passes, seconds) = repeat_passes(settings, budget, stop, |pass| {
+        let g = render_gradients(scene, tracer, pass, stop)?;
+        match &mut total {
+            Some(t) => t.accumulate(&g),
+            None => total = Some(g),
+        }
+        Ok(())
+    })?;
+    let mut g = total.ok_or("no pass was rendered")?;
+    let n = passes as f32;
+    for image in [&mut g.primal, &mut g.dx, &mut g.dy] {
+        for c in image.iter_mut() {
+            *c = c.map(|v| v / n);
+        }
+    }
+    g.seconds = seconds;
+    Ok((g, passes))
+}
