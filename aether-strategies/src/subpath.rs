@@ -200,20 +200,34 @@ impl<'a> Subpath<'a> {
         self.join(s, lamp, radiance.as_dvec3())
     }
 
+    /// As [`connect_lamp`](Self::connect_lamp) for an edge whose visibility
+    /// the caller already knows (a path shifted from another that shares
+    /// it): no shadow ray is cast.
+    #[must_use]
+    pub fn connect_lamp_unoccluded(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
+        let c = &self.vertices[s.max(1) - 1];
+        let radiance = lamp
+            .direction_to(c)
+            .map_or(Vec3::ZERO, |d| self.f.emitted(lamp, d));
+        self.unoccluded(s, lamp, radiance.as_dvec3())
+    }
+
     /// f(x̄) for the first `s` vertices joined to a light-side vertex `l`
     /// whose factors of f beyond the edge multiply to `beyond`.
     fn join(&self, s: usize, l: &SceneVertex, beyond: DVec3) -> DVec3 {
+        let f = self.unoccluded(s, l, beyond);
+        if f == DVec3::ZERO || !self.f.visible(&self.vertices[s - 1], l) {
+            return DVec3::ZERO;
+        }
+        f
+    }
+
+    /// As [`join`](Self::join), without the visibility test.
+    fn unoccluded(&self, s: usize, l: &SceneVertex, beyond: DVec3) -> DVec3 {
         if s == 0 || self.end != End::Camera || beyond == DVec3::ZERO {
             return DVec3::ZERO;
         }
         let c = &self.vertices[s - 1];
-        let f = self.products[s - 1]
-            * self.factor_at(s - 1, l)
-            * f64::from(geometry_term(c, l))
-            * beyond;
-        if f == DVec3::ZERO || !self.f.visible(c, l) {
-            return DVec3::ZERO;
-        }
-        f
+        self.products[s - 1] * self.factor_at(s - 1, l) * f64::from(geometry_term(c, l)) * beyond
     }
 }

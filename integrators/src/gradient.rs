@@ -20,13 +20,14 @@
 //! pixels, so their difference estimates the gradient, and the mean over a
 //! pixel's neighbours estimates the pixel (the primal image).
 
+use std::cell::Cell;
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use aether_core::{
-    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef, densities_of_split,
-    replay_jacobian, weight_of_shift,
+    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef,
+    densities_of_split, replay_jacobian, weight_of_shift,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection};
@@ -44,6 +45,13 @@ use crate::film::Film;
 use crate::film::is_valid;
 use crate::poisson::{Norm, reconstruct};
 use crate::render::{Rendered, Settings, Tile, render_tiles, repeat_passes};
+
+thread_local! {
+    /// Density factors of one sample's base and offset paths: the offsets
+    /// copy the base's vertices after reconnecting, and every event
+    /// re-weighs the same prefix, so each factor is evaluated once.
+    static DENSITIES: std::cell::RefCell<DensityCache> = std::cell::RefCell::new(DensityCache::new());
+}
 
 /// The four neighbours of a pixel, in the order of [`PairSums`]: left,
 /// right, up, down. Directions 2k and 2k + 1 are opposite.
@@ -99,6 +107,9 @@ struct Offset<'a> {
     /// Where the offset reconnected to the base path, which it copies from
     /// there on.
     joined_at: Option<usize>,
+    /// Its density over the base's under the same technique, once the
+    /// vertices that differ no longer condition the last ones.
+    ratio: Cell<Option<f64>>,
 }
 
 impl<'s> GradientPathTracer<'s> {
@@ -164,6 +175,7 @@ impl<'s> GradientPathTracer<'s> {
             }
         };
 
+        DENSITIES.with_borrow_mut(DensityCache::clear);
         let start = rng.clone();
         let mut base = RandomSequence::new();
         if !base.append(&lens).append_sample(&looks[0], rng) {
@@ -171,73 +183,117 @@ impl<'s> GradientPathTracer<'s> {
         }
         let importance = f.importance(pixel, base.vertices());
         let mut eye = Subpath::of(f, End::Camera, base.vertices());
-        let mut offsets: [Option<Offset<'_>>; 4] = std::array::from_fn(|d| {
-            let j = neighbours[d]?;
-            let mut path = RandomSequence::new();
-            if !path
-                .append(&lens)
-                .append_sample(&looks[1 + d], &mut start.clone())
-            {
-                return None;
-            }
-            Some(Offset {
-                sub: Subpath::of(f, End::Camera, path.vertices()),
-                importance: f.importance(j, path.vertices()),
-                jacobian: replay_jacobian(&base, &path, 0..2),
+        // Built in place: an offset is kilobytes of inline vertices, and
+        // moving four of them per sample showed up as memcpy in profiles.
+        let mut offsets: [Option<Offset<'_>>; 4] = [None, None, None, None];
+        for (d, slot) in offsets.iter_mut().enumerate() {
+            let Some(j) = neighbours[d] else { continue };
+            let o = slot.insert(Offset {
+                path: RandomSequence::new(),
+                sub: Subpath::new(f, End::Camera),
+                importance: 0.0,
+                jacobian: 0.0,
                 joined_at: None,
-                path,
-            })
-        });
+                ratio: Cell::new(None),
+            });
+            let camera_ray = o
+                .path
+                .append(&lens)
+                .append_sample(&looks[1 + d], &mut start.clone());
+            if !camera_ray {
+                *slot = None;
+                continue;
+            }
+            o.sub.extend(o.path.vertices());
+            o.importance = f.importance(j, o.path.vertices());
+            o.jacobian = replay_jacobian(&base, &o.path, 0..2);
+        }
         // Adds one base path (technique `own`, value `fx`) and the offsets'
         // paths of the same length, with their values.
-        let mut contribute = |own: usize,
-                              fx: DVec3,
-                              base: &RandomSequence<'_, SceneVertex>,
-                              offsets: &[Option<(&RandomSequence<'_, SceneVertex>, DVec3, f64)>;
-                                   4]| {
-            let n = base.len();
-            let splits = splits(n);
-            let dx = densities_of_split(base, &cameras[0], &[], &splits, None);
-            let px = dx[own].value();
-            // Long paths through near-specular surfaces can overflow f or
-            // p: such a path contributes nothing.
-            if !(px > 0.0 && px.is_finite() && fx.is_finite()) {
-                return;
-            }
-            for d in 0..4 {
-                let Some(_) = neighbours[d] else { continue };
-                let (fy, w, jacobian) = match offsets[d] {
-                    Some((path, fy, jacobian))
-                        if fy.is_finite() && (fx != DVec3::ZERO || fy != DVec3::ZERO) =>
-                    {
-                        let dy = densities_of_split(path, &cameras[1 + d], &[], &splits, None);
-                        let w = weight_of_shift(&dx, Some((&dy, jacobian)), own, self.heuristic);
-                        (fy, w, jacobian)
-                    }
-                    _ if fx != DVec3::ZERO => (
-                        DVec3::ZERO,
-                        weight_of_shift(&dx, None, own, self.heuristic),
-                        0.0,
-                    ),
-                    _ => continue,
-                };
-                out.base[d] += fx * (w / px);
-                out.offset[d] += fy * (w * jacobian / px);
-            }
-        };
+        let mut contribute =
+            |own: usize,
+             fx: DVec3,
+             base: &RandomSequence<'_, SceneVertex>,
+             offsets: &[Option<(&Offset<'_>, DVec3, f64)>; 4]| {
+                let n = base.len();
+                let splits = splits(n);
+                let dx = DENSITIES.with_borrow_mut(|c| {
+                    densities_of_split(base, &cameras[0], &[], &splits, Some(c))
+                });
+                let px = dx[own].value();
+                // Long paths through near-specular surfaces can overflow f or
+                // p: such a path contributes nothing.
+                if !(px > 0.0 && px.is_finite() && fx.is_finite()) {
+                    return;
+                }
+                for d in 0..4 {
+                    let Some(_) = neighbours[d] else { continue };
+                    let (fy, w, jacobian) = match offsets[d] {
+                        Some((o, fy, jacobian))
+                            if fy.is_finite() && (fx != DVec3::ZERO || fy != DVec3::ZERO) =>
+                        {
+                            // Far enough past the reconnection, the offset's
+                            // densities are the base's times one ratio, which
+                            // the first such event measures.
+                            let settled = o.joined_at.is_some_and(|k| n >= k + 3 + own);
+                            let w = match o.ratio.get().filter(|_| settled) {
+                                Some(r) => weight_of_shift(
+                                    &dx,
+                                    Some((&dx, jacobian * r)),
+                                    own,
+                                    self.heuristic,
+                                ),
+                                None => {
+                                    let dy = DENSITIES.with_borrow_mut(|c| {
+                                        densities_of_split(
+                                            &o.path,
+                                            &cameras[1 + d],
+                                            &[],
+                                            &splits,
+                                            Some(c),
+                                        )
+                                    });
+                                    if settled {
+                                        o.ratio.set(Some(dx[own].ratio_to(dy[own])));
+                                    }
+                                    weight_of_shift(&dx, Some((&dy, jacobian)), own, self.heuristic)
+                                }
+                            };
+                            (fy, w, jacobian)
+                        }
+                        _ if fx != DVec3::ZERO => (
+                            DVec3::ZERO,
+                            weight_of_shift(&dx, None, own, self.heuristic),
+                            0.0,
+                        ),
+                        _ => continue,
+                    };
+                    out.base[d] += fx * (w / px);
+                    out.offset[d] += fy * (w * jacobian / px);
+                }
+            };
         loop {
             let n = base.len();
             if n >= 2 {
                 let shifted = offsets.each_ref().map(|o| {
                     let o = o.as_ref().filter(|o| o.path.len() == n)?;
-                    Some((&o.path, o.sub.emitted(n) * o.importance, o.jacobian))
+                    Some((o, o.sub.emitted(n) * o.importance, o.jacobian))
                 });
                 contribute(0, eye.emitted(n) * importance, &base, &shifted);
             }
             if n <= self.max_depth && eye.connectible(n - 1) {
                 let replay = rng.clone();
                 if base.append_sample(&direct, rng) {
-                    let lit = eye.connect_lamp(n, &base.vertices()[n]);
+                    let lamp = base.vertices()[n];
+                    // The edge to the lamp is the base's for every offset
+                    // that reconnected before it: one shadow ray for all.
+                    let clear = std::cell::OnceCell::new();
+                    let clear =
+                        || *clear.get_or_init(|| visible(scene, &base.vertices()[n - 1], &lamp));
+                    let mut lit = eye.connect_lamp_unoccluded(n, &lamp);
+                    if lit != DVec3::ZERO && !clear() {
+                        lit = DVec3::ZERO;
+                    }
                     let mut jacobians = [0.0; 4];
                     for (o, jacobian) in offsets.iter_mut().zip(&mut jacobians) {
                         let Some(o) = o else { continue };
@@ -254,17 +310,17 @@ impl<'s> GradientPathTracer<'s> {
                     }
                     let shifted = std::array::from_fn(|d| {
                         let o = offsets[d].as_ref().filter(|o| o.path.len() == n + 1)?;
-                        // Reconnected before the last vertex, the offset
-                        // shares the base path's last edge and the factors
-                        // beyond its last vertex: no second shadow ray.
-                        let x = eye.product(n - 1);
-                        let fy = if o.joined_at.is_some_and(|k| k + 2 <= n) && x.min_element() > 0.0
-                        {
-                            o.sub.product(n - 1) * (lit / x)
+                        let fy = if o.joined_at.is_some() {
+                            let fy = o.sub.connect_lamp_unoccluded(n, &lamp);
+                            if fy != DVec3::ZERO && clear() {
+                                fy
+                            } else {
+                                DVec3::ZERO
+                            }
                         } else {
                             o.sub.connect_lamp(n, &o.path.vertices()[n])
                         };
-                        Some((&o.path, fy * o.importance, jacobians[d]))
+                        Some((o, fy * o.importance, jacobians[d]))
                     });
                     contribute(1, lit * importance, &base, &shifted);
                 }

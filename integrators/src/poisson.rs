@@ -20,8 +20,10 @@ pub enum Norm {
     L2,
 }
 
-/// Iteratively reweighted least-squares rounds of an L1 reconstruction.
-const L1_ROUNDS: usize = 20;
+/// At most this many iteratively reweighted least-squares rounds of an L1
+/// reconstruction, each at most this many conjugate-gradient iterations.
+const L1_ROUNDS: usize = 30;
+const L1_ITERATIONS: usize = 200;
 
 /// The image (row by row, `width` × `height`) that best fits `primal` and
 /// the gradients `dx` (at (x, y): I(x + 1, y) − I(x, y); the last column is
@@ -75,10 +77,10 @@ pub fn reconstruct(
 }
 
 /// One channel's least-squares problem with per-term weights (all one for
-/// L2; reweighted for L1).
+/// L2; reweighted for L1). Edges that leave the image have weight zero, so
+/// that the operator runs without a test per pixel.
 struct Problem {
     width: usize,
-    height: usize,
     alpha2: f64,
     primal: Vec<f64>,
     dx: Vec<f64>,
@@ -99,9 +101,8 @@ impl Problem {
         dy: Vec<f64>,
     ) -> Self {
         let n = width * height;
-        Problem {
+        let mut p = Problem {
             width,
-            height,
             alpha2: alpha * alpha,
             primal,
             dx,
@@ -109,41 +110,72 @@ impl Problem {
             wp: vec![1.0; n],
             wx: vec![1.0; n],
             wy: vec![1.0; n],
+        };
+        p.clear_outer_edges();
+        p
+    }
+
+    /// Zero weight for the edges past the last column and row.
+    fn clear_outer_edges(&mut self) {
+        let (w, n) = (self.width, self.wx.len());
+        for i in (w - 1..n).step_by(w) {
+            self.wx[i] = 0.0;
         }
-    }
-
-    fn has_right(&self, i: usize) -> bool {
-        i % self.width + 1 < self.width
-    }
-
-    fn has_down(&self, i: usize) -> bool {
-        i / self.width + 1 < self.height
+        for wy in &mut self.wy[n - w..] {
+            *wy = 0.0;
+        }
     }
 
     /// Solves in `norm`, starting from the primal.
     fn solve(mut self, norm: Norm) -> Vec<f64> {
         let mut image = self.primal.clone();
-        self.conjugate_gradients(&mut image, 2000);
+        self.conjugate_gradients(&mut image, 3000, 1e-12);
+        // The constant image is A's slowest eigenvector (eigenvalue α²):
+        // set its component exactly, as the solution keeps the primal's sum.
+        let n = image.len() as f64;
+        let shift = self
+            .primal
+            .iter()
+            .zip(&image)
+            .map(|(p, v)| p - v)
+            .sum::<f64>()
+            / n;
+        for v in &mut image {
+            *v += shift;
+        }
         if norm == Norm::L1 {
             // Residuals below this count as this large, so that no weight
             // is infinite: a small fraction of the image's mean.
-            let n = image.len() as f64;
-            let scale = self.primal.iter().map(|v| v.abs()).sum::<f64>() / n;
+            let (n, w) = (image.len(), self.width);
+            let scale = self.primal.iter().map(|v| v.abs()).sum::<f64>() / n as f64;
             let floor = 1e-4 * scale.max(1e-12);
             let alpha = self.alpha2.sqrt();
+            let weight = |r: f64| 1.0 / r.abs().max(floor);
             for _ in 0..L1_ROUNDS {
-                for i in 0..image.len() {
-                    self.wp[i] = 1.0 / (alpha * (image[i] - self.primal[i]).abs()).max(floor);
-                    if self.has_right(i) {
-                        let r = image[i + 1] - image[i] - self.dx[i];
-                        self.wx[i] = 1.0 / r.abs().max(floor);
-                    }
-                    if self.has_down(i) {
-                        let r = image[i + self.width] - image[i] - self.dy[i];
-                        self.wy[i] = 1.0 / r.abs().max(floor);
-                    }
+                let before = image.clone();
+                for ((wp, v), p) in self.wp.iter_mut().zip(&image).zip(&self.primal) {
+                    *wp = weight(alpha * (v - p));
                 }
-                self.conjugate_gradients(&mut image, 200);
+                for i in 0..n - 1 {
+                    self.wx[i] = weight(image[i + 1] - image[i] - self.dx[i]);
+                }
+                for i in 0..n - w {
+                    self.wy[i] = weight(image[i + w] - image[i] - self.dy[i]);
+                }
+                self.clear_outer_edges();
+                // A few iterations per round: each round's weights are
+                // provisional, and the image barely changes past this.
+                // Each round's weights are provisional: solve to a modest
+                // residual, and stop once a round barely moves the image.
+                self.conjugate_gradients(&mut image, L1_ITERATIONS, 1e-6);
+                let change = image
+                    .iter()
+                    .zip(&before)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                if change < 1e-3 * scale {
+                    break;
+                }
             }
         }
         image
@@ -151,52 +183,45 @@ impl Problem {
 
     /// A v, for the normal equations A = α²Wp + ∂xᵀWx∂x + ∂yᵀWy∂y.
     fn apply(&self, v: &[f64], out: &mut [f64]) {
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = self.alpha2 * self.wp[i] * v[i];
+        let (n, w) = (v.len(), self.width);
+        for i in 0..n {
+            out[i] = self.alpha2 * self.wp[i] * v[i];
         }
-        for i in 0..v.len() {
-            if self.has_right(i) {
-                let t = self.wx[i] * (v[i + 1] - v[i]);
-                out[i] -= t;
-                out[i + 1] += t;
-            }
-            if self.has_down(i) {
-                let t = self.wy[i] * (v[i + self.width] - v[i]);
-                out[i] -= t;
-                out[i + self.width] += t;
-            }
+        for i in 0..n - 1 {
+            let t = self.wx[i] * (v[i + 1] - v[i]);
+            out[i] -= t;
+            out[i + 1] += t;
+        }
+        for i in 0..n - w {
+            let t = self.wy[i] * (v[i + w] - v[i]);
+            out[i] -= t;
+            out[i + w] += t;
         }
     }
 
     /// The right-hand side α²Wp P + ∂xᵀWx Gx + ∂yᵀWy Gy and the diagonal of A.
     fn rhs_and_diagonal(&self) -> (Vec<f64>, Vec<f64>) {
-        let n = self.primal.len();
+        let (n, w) = (self.primal.len(), self.width);
         let mut b: Vec<f64> = (0..n)
             .map(|i| self.alpha2 * self.wp[i] * self.primal[i])
             .collect();
         let mut diagonal: Vec<f64> = (0..n).map(|i| self.alpha2 * self.wp[i]).collect();
-        for i in 0..n {
-            if self.has_right(i) {
-                let t = self.wx[i] * self.dx[i];
+        let edges = [(1, &self.wx, &self.dx), (w, &self.wy, &self.dy)];
+        for (step, weights, gradient) in edges {
+            for i in 0..n - step {
+                let t = weights[i] * gradient[i];
                 b[i] -= t;
-                b[i + 1] += t;
-                diagonal[i] += self.wx[i];
-                diagonal[i + 1] += self.wx[i];
-            }
-            if self.has_down(i) {
-                let t = self.wy[i] * self.dy[i];
-                b[i] -= t;
-                b[i + self.width] += t;
-                diagonal[i] += self.wy[i];
-                diagonal[i + self.width] += self.wy[i];
+                b[i + step] += t;
+                diagonal[i] += weights[i];
+                diagonal[i + step] += weights[i];
             }
         }
         (b, diagonal)
     }
 
     /// Jacobi-preconditioned conjugate gradients on A x = b from `x`, until
-    /// the residual is 1e-9 of ‖b‖ or after `iterations`.
-    fn conjugate_gradients(&self, x: &mut [f64], iterations: usize) {
+    /// ‖r‖² is `tolerance` ‖b‖² or after `iterations`.
+    fn conjugate_gradients(&self, x: &mut [f64], iterations: usize, tolerance: f64) {
         let n = x.len();
         let (b, diagonal) = self.rhs_and_diagonal();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
@@ -206,10 +231,11 @@ impl Problem {
         let mut z: Vec<f64> = r.iter().zip(&diagonal).map(|(r, d)| r / d).collect();
         let mut p = z.clone();
         let mut rz = dot(&r, &z);
-        let target = 1e-18 * dot(&b, &b).max(1e-300);
-        let mut ap = vec![0.0; n];
+        let mut ap = ax;
+        let mut rr = dot(&r, &r);
+        let target = tolerance * dot(&b, &b).max(1e-300);
         for _ in 0..iterations {
-            if dot(&r, &r) <= target {
+            if rr <= target {
                 break;
             }
             self.apply(&p, &mut ap);
@@ -218,14 +244,16 @@ impl Problem {
                 break;
             }
             let step = rz / pap;
+            let (mut rz_next, mut rr_next) = (0.0, 0.0);
             for i in 0..n {
                 x[i] += step * p[i];
                 r[i] -= step * ap[i];
                 z[i] = r[i] / diagonal[i];
+                rz_next += r[i] * z[i];
+                rr_next += r[i] * r[i];
             }
-            let rz_next = dot(&r, &z);
             let beta = rz_next / rz;
-            rz = rz_next;
+            (rz, rr) = (rz_next, rr_next);
             for i in 0..n {
                 p[i] = z[i] + beta * p[i];
             }

@@ -6,7 +6,7 @@
 //! that); its gradients agree pixel by pixel with the differences of
 //! neighbouring path-traced pixels; its L2 reconstruction keeps the
 //! primal's mean, and its L1 reconstruction's mean is within 1 % of the
-//! path tracer's. Pixels that see the light are left out of the means, as
+//! path tracer's (with a standard error below 0.5 %). Pixels that see the light are left out of the means, as
 //! in the agreement tests. Each test takes about a minute.
 
 use std::collections::HashMap;
@@ -112,14 +112,16 @@ fn check(name: &str, scene: &mut Scene, gpt_spp: u32, path_spp: u32) {
         );
     }
     // L1 is biased at finite sample counts (a median rather than a mean
-    // of the noise), but consistent: its mean must be within 1 % here.
+    // of the noise), but consistent: its mean must be within 1 % of the
+    // path tracer's, with a standard error that resolves 1 % at 2σ (its
+    // per-render noise is larger than the primal's).
     let r = agreement(&l1, &path, None, Some(&edges));
     println!(
         "{name}: GPT L1 mean differs from path by {:+.3} % ± {:.3} %",
         100.0 * r.relative_difference,
         100.0 * r.relative_error
     );
-    assert!(r.relative_difference.abs() < 1e-2 && r.relative_error < 1e-2 / 3.0);
+    assert!(r.relative_difference.abs() < 1e-2 && r.relative_error < 0.5e-2);
 }
 
 #[test]
@@ -136,5 +138,5 @@ fn gradient_domain_tracing_converges_on_cbox_sphere() {
     let mut scene = Scene::load(&file, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"));
     let film = &mut scene.film;
     (film.width, film.height, film.crop) = (24, 24, [0, 0, 24, 24]);
-    check("cbox-sphere", &mut scene, 384, 768);
+    check("cbox-sphere", &mut scene, 512, 768);
 }
