@@ -19,13 +19,10 @@
 
 use std::collections::HashMap;
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
 
 use aether_strategies::scene::Scene;
-use integrators::gradient::{GradientPathTracer, render_gradient_passes};
+use examples::render_for;
 use integrators::output::{Comparison, read_exr, write_exr};
-use integrators::render::{Passes, Settings, estimator, render_passes};
 
 /// A scene of the comparison, relative to the workspace, the integrators
 /// compared on it and the claims checked: (a, b) for "a beats b".
@@ -105,29 +102,6 @@ fn load(case: &Case, scale: f64) -> Result<Scene, String> {
     Ok(scene)
 }
 
-/// Renders `scene` with `integrator` for `seconds`, from the random
-/// streams that `seed` picks; gradient-domain tracing's image is its
-/// reconstruction, made within the time.
-fn run(scene: &mut Scene, integrator: &str, seconds: f64, seed: u64) -> Result<Passes, String> {
-    scene.integrator.name = integrator.into();
-    let settings = Settings::new(1, seed);
-    let stop = AtomicBool::new(false);
-    let budget = Duration::from_secs_f64(seconds);
-    if integrator != "gpt" {
-        return render_passes(scene, estimator(scene)?.as_ref(), &settings, budget, &stop);
-    }
-    let start = Instant::now();
-    let tracer = GradientPathTracer::new(scene)?;
-    let (g, passes) = render_gradient_passes(scene, &tracer, &settings, budget, &stop)?;
-    Ok(Passes {
-        image: g.reconstruct(&scene.integrator.gradient),
-        passes,
-        seconds: start.elapsed().as_secs_f64(),
-        samples: g.samples,
-        rays: g.rays,
-    })
-}
-
 fn compare(case: &Case, o: &Options) -> Result<(), String> {
     let mut scene = load(case, o.scale)?;
     let (w, h) = (scene.film.width, scene.film.height);
@@ -156,7 +130,7 @@ fn compare(case: &Case, o: &Options) -> Result<(), String> {
                 o.reference_seconds
             );
             // Its own streams: the compared BDPT render must not repeat its passes.
-            let r = run(&mut scene, "bdpt", o.reference_seconds, 1_000_003)?;
+            let r = render_for(&mut scene, "bdpt", o.reference_seconds, 1_000_003)?;
             std::fs::create_dir_all(&o.cache).map_err(|e| format!("{}: {e}", o.cache.display()))?;
             write_exr(&cached, w, h, &r.image, r.passes, r.seconds)?;
             println!(
@@ -177,7 +151,7 @@ fn compare(case: &Case, o: &Options) -> Result<(), String> {
             println!("{integrator:<8} (the scene has no portal)");
             continue;
         }
-        let r = run(&mut scene, integrator, o.seconds, 17)?;
+        let r = render_for(&mut scene, integrator, o.seconds, 17)?;
         let c = Comparison::of(&r.image, &reference).ok_or("the image sizes differ")?;
         // Passes end past the budget: scale the errors to the budget (variance ∝ 1/time).
         let scale = r.seconds / o.seconds;

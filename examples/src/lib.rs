@@ -1,16 +1,22 @@
 //! Short programs that reproduce the Aether examples; see `examples/`.
 //! This library holds what they share: loading an Aether scene at a chosen
-//! resolution, and rendering it to an EXR image and PNG preview.
+//! resolution, rendering it to an EXR image and PNG preview, rendering any
+//! integrator for a given time ([`render_for`]), and the [`reproduce`]
+//! report.
 #![deny(unsafe_code)]
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
 
 use aether_strategies::scene::Scene;
 use integrators::estimator::Estimator;
+use integrators::gradient::{GradientPathTracer, render_gradient_passes};
 use integrators::output::{write_exr, write_png};
-use integrators::render::{Rendered, Settings, render_with};
+use integrators::render::{Passes, Rendered, Settings, estimator, render_passes, render_with};
+
+pub mod reproduce;
 
 /// The workspace folder.
 #[must_use]
@@ -69,4 +75,37 @@ pub fn render_to(
         dir.join(format!("{name}.png")).display()
     );
     Ok(r)
+}
+
+/// Renders `scene` with the integrator named `integrator` in whole passes
+/// of one sample per pixel for `seconds` (at least one pass), from the
+/// random streams that `seed` picks: the image of an equal-time comparison.
+/// Gradient-domain tracing's image is its reconstruction, made within the
+/// time.
+///
+/// # Errors
+/// If the integrator is not known or cannot render the scene.
+pub fn render_for(
+    scene: &mut Scene,
+    integrator: &str,
+    seconds: f64,
+    seed: u64,
+) -> Result<Passes, String> {
+    scene.integrator.name = integrator.into();
+    let settings = Settings::new(1, seed);
+    let stop = AtomicBool::new(false);
+    let budget = Duration::from_secs_f64(seconds);
+    if integrator != "gpt" {
+        return render_passes(scene, estimator(scene)?.as_ref(), &settings, budget, &stop);
+    }
+    let start = Instant::now();
+    let tracer = GradientPathTracer::new(scene)?;
+    let (g, passes) = render_gradient_passes(scene, &tracer, &settings, budget, &stop)?;
+    Ok(Passes {
+        image: g.reconstruct(&scene.integrator.gradient),
+        passes,
+        seconds: start.elapsed().as_secs_f64(),
+        samples: g.samples,
+        rays: g.rays,
+    })
 }
