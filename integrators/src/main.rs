@@ -115,6 +115,10 @@ struct RenderArgs {
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
+    /// Film width for a scene file (the height keeps its aspect ratio; the
+    /// crop window becomes the whole film).
+    #[arg(long)]
+    width: Option<u32>,
 }
 
 fn parse_param(s: &str) -> Result<(String, String), String> {
@@ -137,6 +141,16 @@ fn run(args: RenderArgs) -> Result<(), String> {
             return Err("--spp must be positive".to_string());
         }
         scene.film.spp = spp;
+    }
+    if let Some(width) = args.width {
+        if width == 0 {
+            return Err("--width must be positive".to_string());
+        }
+        let film = &mut scene.film;
+        let aspect = f64::from(film.height) / f64::from(film.width);
+        film.height = ((f64::from(width) * aspect).round() as u32).max(1);
+        film.width = width;
+        film.crop = [0, 0, film.width, film.height];
     }
     if let Some(d) = args.max_depth {
         scene.integrator.max_depth = d;
