@@ -2,7 +2,8 @@
 //! spheres beside it, a watertight triangle test, and ray origins offset by
 //! the rounding error of the hit point (no fixed epsilon).
 
-use std::time::Duration;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec2, Vec3, Vec3A};
 use obvhs::BvhBuildParams;
@@ -63,10 +64,46 @@ fn gamma(n: f32) -> f32 {
 
 thread_local! {
     static RAYS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    static RAY_NANOS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
 }
+
+/// Whether rays are timed ([`time_rays`]).
+static TIMING: AtomicBool = AtomicBool::new(false);
 
 fn count_ray() {
     RAYS.with(|r| r.set(r.get() + 1));
+}
+
+/// Times one ray while it lives, if timing is on.
+struct RayTimer(Option<Instant>);
+
+impl RayTimer {
+    fn start() -> Self {
+        count_ray();
+        RayTimer(TIMING.load(Ordering::Relaxed).then(Instant::now))
+    }
+}
+
+impl Drop for RayTimer {
+    fn drop(&mut self) {
+        if let Some(start) = self.0 {
+            let nanos = start.elapsed().as_nanos() as u64;
+            RAY_NANOS.with(|t| t.set(t.get() + nanos));
+        }
+    }
+}
+
+/// Turns the timing of every ray cast on or off (off by default: reading
+/// the clock twice per ray costs a few percent). Benchmarks turn it on to
+/// measure the share of time spent in ray casting.
+pub fn time_rays(on: bool) {
+    TIMING.store(on, Ordering::Relaxed);
+}
+
+/// Nanoseconds this thread has spent casting rays while timing was on.
+#[must_use]
+pub fn ray_nanos() -> u64 {
+    RAY_NANOS.with(std::cell::Cell::get)
 }
 
 /// The number of rays (closest-hit and shadow) this thread has cast so far:
@@ -227,7 +264,7 @@ impl Geometry {
     /// t ∈ (0, `t_max`).
     #[must_use]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
-        count_ray();
+        let _timer = RayTimer::start();
         let shear = Shear::new(origin, dir);
         let mut best: Option<(f32, usize, [f32; 3])> = None;
         if let Some(bvh) = &self.bvh {
@@ -266,7 +303,7 @@ impl Geometry {
     /// t ∈ (0, `t_max`). Stops at the first hit found.
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
-        count_ray();
+        let _timer = RayTimer::start();
         if self
             .spheres
             .iter()

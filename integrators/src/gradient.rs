@@ -412,6 +412,8 @@ pub struct Gradients {
     pub samples: u64,
     /// Rays cast.
     pub rays: u64,
+    /// Seconds spent casting them, summed over threads, when rays are timed.
+    pub ray_seconds: f64,
     /// Samples dropped as NaN, infinite or negative.
     pub dropped: u64,
     /// False if the time limit or a stop request cut the render short.
@@ -438,6 +440,7 @@ impl Gradients {
         }
         self.samples += other.samples;
         self.rays += other.rays;
+        self.ray_seconds += other.ray_seconds;
         self.dropped += other.dropped;
         self.complete &= other.complete;
     }
@@ -467,6 +470,7 @@ impl Gradients {
             seconds: self.seconds,
             samples: self.samples,
             rays: self.rays,
+            ray_seconds: self.ray_seconds,
             complete: self.complete,
         }
     }
@@ -531,6 +535,7 @@ pub fn render_gradients(
         seconds: run.seconds,
         samples: sums.iter().flatten().count() as u64 * u64::from(settings.spp),
         rays: run.rays,
+        ray_seconds: run.ray_seconds,
         dropped: dropped.into_inner().expect("no thread panicked"),
         complete: run.complete,
         rendered: sums.iter().map(Option::is_some).collect(),

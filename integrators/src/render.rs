@@ -12,7 +12,7 @@ use aether_strategies::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use aether_strategies::geometry::rays_cast;
+use aether_strategies::geometry::{ray_nanos, rays_cast};
 
 use crate::bdpt::Bdpt;
 use crate::direct::DirectLighting;
@@ -72,6 +72,8 @@ pub struct Rendered {
     pub samples: u64,
     /// Rays cast (camera and shadow rays).
     pub rays: u64,
+    /// Seconds spent casting them, summed over threads, when rays are timed.
+    pub ray_seconds: f64,
     /// False if the time limit or a stop request cut the render short.
     pub complete: bool,
 }
@@ -162,6 +164,7 @@ pub fn render_with(
         seconds: run.seconds,
         samples,
         rays: run.rays,
+        ray_seconds: run.ray_seconds,
         complete: run.complete,
     })
 }
@@ -176,6 +179,9 @@ pub struct TileRun {
     pub seconds: f64,
     /// Rays cast.
     pub rays: u64,
+    /// Seconds spent casting them, summed over threads, when rays are timed
+    /// ([`aether_strategies::geometry::time_rays`]); zero otherwise.
+    pub ray_seconds: f64,
     /// False if the time limit or a stop request cut the render short.
     pub complete: bool,
 }
@@ -211,7 +217,7 @@ pub fn render_tiles<T: Send>(
         ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
             .expect("valid template"),
     );
-    let rays = AtomicU64::new(0);
+    let (rays, nanos) = (AtomicU64::new(0), AtomicU64::new(0));
     let start = Instant::now();
     let out_of_time = || {
         stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
@@ -230,7 +236,7 @@ pub fn render_tiles<T: Send>(
                 if out_of_time() {
                     return false;
                 }
-                let rays_before = rays_cast();
+                let (rays_before, nanos_before) = (rays_cast(), ray_nanos());
                 let mut local = Vec::new();
                 for y in ty..(ty + TILE).min(cy + ch) {
                     for x in tx..(tx + TILE).min(cx + cw) {
@@ -241,6 +247,7 @@ pub fn render_tiles<T: Send>(
                 }
                 store(local);
                 rays.fetch_add(rays_cast() - rays_before, Ordering::Relaxed);
+                nanos.fetch_add(ray_nanos() - nanos_before, Ordering::Relaxed);
                 bar.inc(1);
                 true
             })
@@ -252,6 +259,7 @@ pub fn render_tiles<T: Send>(
     Ok(TileRun {
         seconds: start.elapsed().as_secs_f64(),
         rays: rays.load(Ordering::Relaxed),
+        ray_seconds: nanos.load(Ordering::Relaxed) as f64 * 1e-9,
         complete,
     })
 }
