@@ -45,6 +45,7 @@ mod distribution;
 mod frame;
 pub mod harness;
 mod mis;
+mod primary;
 pub mod primitives;
 mod rng;
 mod sequence;
@@ -63,6 +64,7 @@ pub use mis::{
     DensityCache, Heuristic, Split, Weights, combine, densities_of_split, weight_of_split,
     weights_of_split_variants,
 };
+pub use primary::{PrimarySamples, Replay};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use shift::{replay_jacobian, weight_of_shift};

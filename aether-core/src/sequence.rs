@@ -309,7 +309,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// as unsampled steps: the sequence has no density as a path of its
     /// full length, but still counts as a technique in
     /// [`combine`](crate::combine) and [`pdf_of`](Self::pdf_of).
-    pub fn sample<R: UniformSource>(&mut self, rng: &mut R) -> StepKind {
+    pub fn sample(&mut self, rng: &mut dyn UniformSource) -> StepKind {
         let pending = std::mem::take(&mut self.pending);
         // A sequence that already stopped samples nothing more.
         let mut result = if self.unsampled.is_empty() {
@@ -330,19 +330,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
-    pub fn append_sample<R: UniformSource>(
+    pub fn append_sample(
         &mut self,
         strategy: &'s dyn DynStrategy<V>,
-        rng: &mut R,
+        rng: &mut dyn UniformSource,
     ) -> bool {
         self.append(strategy);
         self.sample(rng) == StepKind::Vertex
     }
 
-    fn sample_step<R: UniformSource>(
+    fn sample_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
-        rng: &mut R,
+        rng: &mut dyn UniformSource,
     ) -> StepKind {
         let mut out = SmallVec::<[V; 2]>::new();
         let (kind, density) = strategy.sample_step(Prefix::forward(&self.vertices), rng, &mut out);

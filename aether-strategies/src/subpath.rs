@@ -193,11 +193,16 @@ impl<'a> Subpath<'a> {
     /// emitter sampling), the edge to it tested for visibility.
     #[must_use]
     pub fn connect_lamp(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
+        self.join(s, lamp, self.lamp_radiance(s, lamp))
+    }
+
+    /// What `lamp` emits toward this subpath's vertex `s − 1`.
+    fn lamp_radiance(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
         let c = &self.vertices[s.max(1) - 1];
         let radiance = lamp
             .direction_to(c)
             .map_or(Vec3::ZERO, |d| self.f.emitted(lamp, d));
-        self.join(s, lamp, radiance.as_dvec3())
+        radiance.as_dvec3()
     }
 
     /// As [`connect_lamp`](Self::connect_lamp) for an edge whose visibility
@@ -205,11 +210,7 @@ impl<'a> Subpath<'a> {
     /// it): no shadow ray is cast.
     #[must_use]
     pub fn connect_lamp_unoccluded(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
-        let c = &self.vertices[s.max(1) - 1];
-        let radiance = lamp
-            .direction_to(c)
-            .map_or(Vec3::ZERO, |d| self.f.emitted(lamp, d));
-        self.unoccluded(s, lamp, radiance.as_dvec3())
+        self.unoccluded(s, lamp, self.lamp_radiance(s, lamp))
     }
 
     /// f(x̄) for the first `s` vertices joined to a light-side vertex `l`

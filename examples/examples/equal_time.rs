@@ -77,10 +77,7 @@ fn options() -> Result<Options, String> {
         let [flag, value] = pair else {
             return Err(format!("{} needs a value", pair[0]));
         };
-        let number = || match value.parse::<f64>() {
-            Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-            _ => Err(format!("{flag} needs a positive number, not '{value}'")),
-        };
+        let number = || examples::positive(flag, value);
         match flag.as_str() {
             "--seconds" => o.seconds = number()?,
             "--reference-seconds" => o.reference_seconds = number()?,

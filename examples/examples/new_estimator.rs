@@ -15,8 +15,8 @@ use std::sync::atomic::AtomicBool;
 
 use aether_core::primitives::UniformCone;
 use aether_core::{
-    Distribution, DynStrategy, Frame, Heuristic, InFrame, Intersect, Pcg32, Prefix, RandomSequence,
-    Split, Step, Strategy, StrategyRef, weight_of_split,
+    Distribution, DynStrategy, Frame, Heuristic, InFrame, Intersect, Prefix, RandomSequence, Split,
+    Step, Strategy, StrategyRef, weight_of_split,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
@@ -28,7 +28,7 @@ use aether_strategies::vertex::SceneVertex;
 use glam::Vec3;
 use integrators::cornell::cornell_box;
 use integrators::direct::DirectLighting;
-use integrators::estimator::{Estimator, Splats, estimate};
+use integrators::estimator::{Estimator, Rng, Splats, estimate};
 use integrators::output::Comparison;
 use integrators::render::{Settings, render_with};
 
@@ -69,7 +69,7 @@ struct ThreeWays<'s> {
 }
 
 impl Estimator for ThreeWays<'_> {
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, _splats: &mut Splats) -> Vec3 {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, _splats: &mut Splats) -> Vec3 {
         let (lens, look) = (
             self.camera.position(),
             self.camera.direction(self.scene, pixel),

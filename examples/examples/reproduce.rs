@@ -27,10 +27,7 @@ fn options() -> Result<Options, String> {
     let mut rest = args.iter().filter(|a| *a != "--quick");
     while let Some(flag) = rest.next() {
         let value = rest.next().ok_or_else(|| format!("{flag} needs a value"))?;
-        let number = || match value.parse::<f64>() {
-            Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-            _ => Err(format!("{flag} needs a positive number, not '{value}'")),
-        };
+        let number = || examples::positive(flag, value);
         match flag.as_str() {
             "--seconds" => o.seconds = number()?,
             "--reference-seconds" => o.reference_seconds = number()?,

@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use aether_strategies::scene::Scene;
 use integrators::estimator::Estimator;
 use integrators::gradient::{GradientPathTracer, render_gradient_passes};
+use integrators::mlt::{MltSettings, render_mlt};
 use integrators::output::{write_exr, write_png};
 use integrators::render::{Passes, Rendered, Settings, estimator, render_passes, render_with};
 
@@ -95,6 +96,9 @@ pub fn render_for(
     let settings = Settings::new(1, seed);
     let stop = AtomicBool::new(false);
     let budget = Duration::from_secs_f64(seconds);
+    if integrator == "pssmlt" {
+        return mlt_for(scene, budget, seed);
+    }
     if integrator != "gpt" {
         return render_passes(scene, estimator(scene)?.as_ref(), &settings, budget, &stop);
     }
@@ -108,4 +112,40 @@ pub fn render_for(
         samples: g.samples,
         rays: g.rays,
     })
+}
+
+/// PSSMLT for `budget`, its bootstrap included: four bootstrap samples per
+/// pixel (at most 100 000), then mutations until the time is up. Its
+/// "passes" are mutations per pixel.
+fn mlt_for(scene: &Scene, budget: Duration, seed: u64) -> Result<Passes, String> {
+    let [_, _, cw, ch] = scene.film.crop;
+    let pixels = u64::from(cw) * u64::from(ch);
+    let mlt = MltSettings {
+        bootstrap: (4 * pixels).min(100_000) as usize,
+        ..MltSettings::default()
+    };
+    let settings = Settings {
+        time_limit: Some(budget),
+        ..Settings::new(u32::MAX / 2, seed)
+    };
+    let r = render_mlt(scene, mlt, &settings, &AtomicBool::new(false))?;
+    let mutations = r.samples.saturating_sub(mlt.bootstrap as u64);
+    Ok(Passes {
+        image: r.film.image(),
+        passes: (mutations / pixels.max(1)) as u32,
+        seconds: r.seconds,
+        samples: r.samples,
+        rays: r.rays,
+    })
+}
+
+/// `value` of command-line option `flag` as a positive, finite number.
+///
+/// # Errors
+/// Naming the option, if it is not one.
+pub fn positive(flag: &str, value: &str) -> Result<f64, String> {
+    match value.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{flag} needs a positive number, not '{value}'")),
+    }
 }

@@ -135,7 +135,7 @@ pub struct Report {
 
 /// The integrators of the equal-time part (direct lighting is left out: it
 /// estimates another image).
-const EQUAL_TIME: [&str; 5] = ["path", "light", "bdpt", "tridir", "gpt"];
+const EQUAL_TIME: [&str; 6] = ["path", "light", "bdpt", "tridir", "gpt", "pssmlt"];
 
 /// Scene files replaced by the project's own version: Aether hard-coded the
 /// keyhole of `cbox_tridir.xml`, which `scenes/` declares as a portal.

@@ -12,8 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, UniformSource,
-    weights_of_split_variants,
+    DensityCache, DynStrategy, Heuristic, RandomSequence, StrategyRef, weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -27,7 +26,7 @@ use aether_strategies::vertex::{SceneVertex, Site};
 use glam::{DVec3, Vec3};
 use smallvec::SmallVec;
 
-use crate::estimator::{Estimator, Splats, path_limits};
+use crate::estimator::{Estimator, Rng, Splats, path_limits};
 use crate::techniques::TechniqueImages;
 
 type Path<'a> = RandomSequence<'a, SceneVertex>;
@@ -182,7 +181,7 @@ fn walk<'a>(
     first: [&'a dyn DynStrategy<SceneVertex>; 2],
     next: &'a dyn DynStrategy<SceneVertex>,
     max: usize,
-    rng: &mut Pcg32,
+    rng: &mut Rng,
 ) -> Path<'a> {
     let mut path = RandomSequence::new();
     path.append(first[0]).append(first[1]).sample(rng);
@@ -193,7 +192,7 @@ fn walk<'a>(
 }
 
 impl Estimator for Bdpt<'_> {
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3 {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, splats: &mut Splats) -> Vec3 {
         let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
             return Vec3::ZERO;
         };
@@ -251,7 +250,7 @@ impl Estimator for Bdpt<'_> {
 struct Run<'r, 'a, 's> {
     kit: &'a Kit<'a, 's>,
     pixel: [u32; 2],
-    rng: &'r mut Pcg32,
+    rng: &'r mut Rng<'r>,
     splats: &'r mut Splats,
     path: Path<'a>,
 }

@@ -1,7 +1,7 @@
 //! Direct lighting: at the first surface the camera sees, one light sample
 //! and one BSDF sample, each weighed by MIS against the other.
 
-use aether_core::{DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef};
+use aether_core::{DynStrategy, Heuristic, RandomSequence, StrategyRef};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -11,7 +11,7 @@ use aether_strategies::scene::Scene;
 use aether_strategies::subpath::{End, Subpath};
 use glam::Vec3;
 
-use crate::estimator::{Estimator, Splats};
+use crate::estimator::{Estimator, Rng, Splats};
 use crate::path::weight;
 
 /// Direct lighting with MIS between light and BSDF sampling (paths of at
@@ -48,7 +48,7 @@ impl<'s> DirectLighting<'s> {
 }
 
 impl Estimator for DirectLighting<'_> {
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, _splats: &mut Splats) -> Vec3 {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, _splats: &mut Splats) -> Vec3 {
         let Some(lights) = &self.lights else {
             return Vec3::ZERO;
         };

@@ -1,7 +1,7 @@
 //! What the render loop asks of an integrator: one sample of a pixel, with
 //! the contributions its light paths make to other pixels.
 
-use aether_core::{Pcg32, RandomSequence};
+use aether_core::{RandomSequence, UniformSource};
 use aether_strategies::scattering::Roulette;
 use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
@@ -12,11 +12,15 @@ use glam::{DVec3, Vec3};
 /// total number of samples taken.
 pub type Splats = Vec<([u32; 2], Vec3)>;
 
+/// The uniforms an estimator draws from: a pixel's seeded stream in the
+/// render loop, or a Markov chain's replayed primary samples.
+pub type Rng<'a> = dyn UniformSource + 'a;
+
 /// An integrator as the render loop sees it.
 pub trait Estimator: Sync {
     /// One sample of pixel `pixel`: the estimate carried by its camera path,
     /// with light-path contributions to any pixel pushed onto `splats`.
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3;
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, splats: &mut Splats) -> Vec3;
 }
 
 /// The longest paths, in vertices (`usize::MAX` for none), and the Russian

@@ -9,6 +9,7 @@
 //! - [`bdpt`]: bidirectional path tracing over every (s, t), and
 //!   tridirectional path tracing with a portal segment; [`techniques`] holds
 //!   its optional (s, t) images;
+//! - [`mlt`]: primary-sample-space Metropolis light transport on BDPT;
 //! - [`gradient`]: gradient-domain path tracing, its images reconstructed
 //!   by [`poisson`];
 //! - [`estimator`]: what the [`render`] loop asks of each; [`film`],
@@ -22,6 +23,7 @@ pub mod estimator;
 pub mod film;
 pub mod gradient;
 pub mod light;
+pub mod mlt;
 pub mod output;
 pub mod path;
 pub mod poisson;

@@ -1,7 +1,7 @@
 //! Light tracing: paths from the lights, each vertex connected to the
 //! camera and splatted where it lands on the film.
 
-use aether_core::{Pcg32, RandomSequence};
+use aether_core::RandomSequence;
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -11,7 +11,7 @@ use aether_strategies::scene::Scene;
 use aether_strategies::subpath::{End, Subpath};
 use glam::{DVec3, Vec3};
 
-use crate::estimator::{Estimator, Splats, estimate, path_limits};
+use crate::estimator::{Estimator, Rng, Splats, estimate, path_limits};
 
 /// A light tracer. Lights seen directly are the one kind of path a light
 /// path cannot reach through a pinhole, so the camera ray of each sample
@@ -54,7 +54,7 @@ impl<'s> LightTracer<'s> {
 }
 
 impl Estimator for LightTracer<'_> {
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, splats: &mut Splats) -> Vec3 {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, splats: &mut Splats) -> Vec3 {
         let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
             return Vec3::ZERO;
         };

@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use integrators::bdpt::Bdpt;
 use integrators::cornell::cornell_box;
 use integrators::gradient::{GradientPathTracer, render_gradients};
+use integrators::mlt::{MltSettings, render_mlt};
 use integrators::output::{Comparison, read_exr, write_exr, write_png};
 use integrators::render::{Settings, render, render_with};
 
@@ -73,6 +74,9 @@ enum Integrator {
     /// Gradient-domain path tracing: writes the reconstruction, and the
     /// primal and gradient images beside it.
     Gpt,
+    /// Primary-sample-space Metropolis light transport on BDPT; `--spp`
+    /// counts mutations per pixel.
+    Pssmlt,
 }
 
 #[derive(clap::Args, Debug)]
@@ -112,6 +116,15 @@ struct RenderArgs {
     /// Longest paths, in vertices, with technique images.
     #[arg(long, default_value_t = 5)]
     technique_vertices: usize,
+    /// PSSMLT: probability of a large step.
+    #[arg(long, default_value_t = 0.3)]
+    large_step: f64,
+    /// PSSMLT: independent chains (the image depends on them, not on the threads).
+    #[arg(long, default_value_t = 16)]
+    chains: usize,
+    /// PSSMLT: bootstrap samples for the normalisation and the chains' starts.
+    #[arg(long, default_value_t = 100_000)]
+    bootstrap: usize,
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
@@ -182,6 +195,16 @@ fn run(args: RenderArgs) -> Result<(), String> {
     if scene.integrator.name == "gpt" {
         return run_gradients(&scene, &settings, &stop, &args.output, args.exposure);
     }
+    let mlt = MltSettings {
+        large_step: args.large_step,
+        chains: args.chains,
+        bootstrap: args.bootstrap,
+    };
+    if !(0.0..=1.0).contains(&mlt.large_step) || mlt.chains == 0 || mlt.bootstrap == 0 {
+        return Err(
+            "--large-step must be in [0, 1], --chains and --bootstrap positive".to_string(),
+        );
+    }
     let r = match &args.techniques {
         Some(dir) => {
             let bdpt = match scene.integrator.name.as_str() {
@@ -195,6 +218,7 @@ fn run(args: RenderArgs) -> Result<(), String> {
             }
             r
         }
+        None if scene.integrator.name == "pssmlt" => render_mlt(&scene, mlt, &settings, &stop)?,
         None => render(&scene, &settings, &stop)?,
     };
     let image = r.film.image();

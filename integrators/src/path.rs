@@ -2,9 +2,7 @@
 //! roulette, direct light sampling at every vertex, and MIS between the two
 //! ways each light vertex could have been sampled.
 
-use aether_core::{
-    DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef, weight_of_split,
-};
+use aether_core::{DynStrategy, Heuristic, RandomSequence, Split, StrategyRef, weight_of_split};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -15,7 +13,7 @@ use aether_strategies::subpath::{End, Subpath};
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
 
-use crate::estimator::{Estimator, Splats, path_limits};
+use crate::estimator::{Estimator, Rng, Splats, path_limits};
 
 /// A unidirectional path tracer with next-event estimation.
 #[derive(Debug)]
@@ -48,7 +46,7 @@ impl<'s> PathTracer<'s> {
 }
 
 impl Estimator for PathTracer<'_> {
-    fn sample(&self, pixel: [u32; 2], rng: &mut Pcg32, _splats: &mut Splats) -> Vec3 {
+    fn sample(&self, pixel: [u32; 2], rng: &mut Rng, _splats: &mut Splats) -> Vec3 {
         let Some(lights) = &self.lights else {
             return Vec3::ZERO;
         };

@@ -76,6 +76,34 @@ pub fn reconstruct(
         .collect()
 }
 
+/// The gradients of an image as [`reconstruct`] reads them: at (x, y),
+/// I(x + 1, y) − I(x, y) and I(x, y + 1) − I(x, y), zero in the last column
+/// and row.
+///
+/// ```
+/// use integrators::poisson::differences;
+/// let (dx, dy) = differences(&[[1.0; 3], [3.0; 3], [2.0; 3], [2.0; 3]], 2);
+/// assert_eq!((dx[0], dx[1], dy[0], dy[1]), ([2.0; 3], [0.0; 3], [1.0; 3], [-1.0; 3]));
+/// ```
+#[must_use]
+pub fn differences(image: &[[f32; 3]], width: u32) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let (n, w) = (image.len(), width as usize);
+    let diff = |i: usize, j: usize| [0, 1, 2].map(|c| image[j][c] - image[i][c]);
+    let dx = (0..n)
+        .map(|i| {
+            if i % w + 1 < w {
+                diff(i, i + 1)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    let dy = (0..n)
+        .map(|i| if i + w < n { diff(i, i + w) } else { [0.0; 3] })
+        .collect();
+    (dx, dy)
+}
+
 /// One channel's least-squares problem with per-term weights (all one for
 /// L2; reweighted for L1). Edges that leave the image have weight zero, so
 /// that the operator runs without a test per pixel.
@@ -281,24 +309,6 @@ mod tests {
             .collect()
     }
 
-    fn gradients(image: &[[f32; 3]], w: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-        let n = image.len();
-        let diff = |i: usize, j: usize| [0, 1, 2].map(|c| image[j][c] - image[i][c]);
-        let dx = (0..n)
-            .map(|i| {
-                if i % w + 1 < w {
-                    diff(i, i + 1)
-                } else {
-                    [0.0; 3]
-                }
-            })
-            .collect();
-        let dy = (0..n)
-            .map(|i| if i + w < n { diff(i, i + w) } else { [0.0; 3] })
-            .collect();
-        (dx, dy)
-    }
-
     fn rmse(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
         let sum: f64 = a
             .iter()
@@ -312,7 +322,7 @@ mod tests {
     fn exact_gradients_and_primal_give_the_image_back() {
         let (w, h) = (17, 13);
         let truth = image(w, h);
-        let (dx, dy) = gradients(&truth, w);
+        let (dx, dy) = differences(&truth, w as u32);
         for norm in [Norm::L2, Norm::L1] {
             let got = reconstruct(w as u32, h as u32, &truth, &dx, &dy, 0.04, norm);
             assert!(
@@ -327,7 +337,7 @@ mod tests {
     fn exact_gradients_remove_the_primal_noise() {
         let (w, h) = (24, 20);
         let truth = image(w, h);
-        let (dx, dy) = gradients(&truth, w);
+        let (dx, dy) = differences(&truth, w as u32);
         let mut rng = Pcg32::new(3, 1);
         let noisy: Vec<[f32; 3]> = truth
             .iter()
@@ -344,7 +354,7 @@ mod tests {
     fn l1_shrugs_off_gradient_outliers_that_l2_spreads() {
         let (w, h) = (24, 20);
         let truth = image(w, h);
-        let (mut dx, dy) = gradients(&truth, w);
+        let (mut dx, dy) = differences(&truth, w as u32);
         // A few fireflies in the gradients.
         for i in [30, 170, 301] {
             dx[i] = dx[i].map(|v| v + 40.0);

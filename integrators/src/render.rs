@@ -20,7 +20,14 @@ use crate::estimator::{Estimator, Splats};
 use crate::film::{Film, SplatBuffer, is_valid};
 use crate::gradient::{GradientPathTracer, render_gradients};
 use crate::light::LightTracer;
+use crate::mlt::{MltSettings, render_mlt};
 use crate::path::PathTracer;
+
+thread_local! {
+    /// Each thread's splat list, reused from pixel to pixel so that light
+    /// paths allocate only while it grows.
+    static SCRATCH: std::cell::Cell<Splats> = const { std::cell::Cell::new(Vec::new()) };
+}
 
 /// Tiles are squares of this many pixels on a side.
 const TILE: u32 = 16;
@@ -106,6 +113,9 @@ pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
 /// # Errors
 /// As [`estimator`], or if the worker threads cannot start.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
+    if scene.integrator.name == "pssmlt" {
+        return render_mlt(scene, MltSettings::default(), settings, stop);
+    }
     if scene.integrator.name == "gpt" {
         let tracer = GradientPathTracer::new(scene)?;
         let g = render_gradients(scene, &tracer, settings, stop)?;
@@ -130,7 +140,7 @@ pub fn render_with(
     let film = Mutex::new(Film::new(w, h));
     let splats = SplatBuffer::new(w, h);
     let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
-        let mut scratch = Splats::new();
+        let mut scratch = SCRATCH.take();
         let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
         for _ in 0..settings.spp {
             let c = estimator.sample([x, y], rng, &mut scratch).to_array();
@@ -145,6 +155,7 @@ pub fn render_with(
                 splats.splat(p, c.to_array());
             }
         }
+        SCRATCH.set(scratch);
         (sum, dropped)
     };
     let store = |tile: Tile<([f64; 3], u64)>| {

@@ -17,30 +17,11 @@ use aether_strategies::lights::Lights;
 use aether_strategies::scene::Scene;
 use integrators::cornell::cornell_box;
 use integrators::gradient::{GradientPathTracer, render_gradients};
+use integrators::poisson::differences;
 use integrators::render::{Settings, render};
 use tests::{Estimate, agreement, assert_agree, seeing};
 
 const RENDERS: u32 = 8;
-
-/// The horizontal and vertical differences of neighbouring pixels
-/// (zero in the last column and row, like the gradient images).
-fn differences(image: &[[f32; 3]], w: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-    let n = image.len();
-    let diff = |i: usize, j: usize| [0, 1, 2].map(|c| image[j][c] - image[i][c]);
-    let dx = (0..n)
-        .map(|i| {
-            if i % w + 1 < w {
-                diff(i, i + 1)
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect();
-    let dy = (0..n)
-        .map(|i| if i + w < n { diff(i, i + w) } else { [0.0; 3] })
-        .collect();
-    (dx, dy)
-}
 
 fn check(name: &str, scene: &mut Scene, gpt_spp: u32, path_spp: u32) {
     let lights = Lights::new(scene).expect("a lit scene");
@@ -87,7 +68,8 @@ fn check(name: &str, scene: &mut Scene, gpt_spp: u32, path_spp: u32) {
         })
         .collect();
     let path = Estimate::from_images("path", &paths);
-    let (path_dx, path_dy): (Vec<_>, Vec<_>) = paths.iter().map(|p| differences(p, w)).unzip();
+    let (path_dx, path_dy): (Vec<_>, Vec<_>) =
+        paths.iter().map(|p| differences(p, w as u32)).unzip();
     let (path_dx, path_dy) = (
         Estimate::from_images("path dx", &path_dx),
         Estimate::from_images("path dy", &path_dy),

@@ -57,7 +57,7 @@ fn the_quick_report_holds_every_example() {
         .iter()
         .filter(|r| r.section == Section::EqualTime)
         .collect();
-    for integrator in ["path", "light", "bdpt", "gpt"] {
+    for integrator in ["path", "light", "bdpt", "gpt", "pssmlt"] {
         let n = equal.iter().filter(|r| r.integrator == integrator).count();
         assert!(n >= 5, "{integrator} at equal time on {n} scenes");
     }
