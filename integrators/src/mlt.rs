@@ -124,13 +124,7 @@ pub fn render_mlt(
     let tracer = Pssmlt::new(scene)?;
     let (w, h) = (scene.film.width, scene.film.height);
     let [_, _, cw, ch] = scene.film.crop;
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = settings.threads {
-        builder = builder.num_threads(n);
-    }
-    let pool = builder
-        .build()
-        .map_err(|e| format!("cannot start the worker threads: {e}"))?;
+    let pool = settings.pool()?;
     let chains = mlt.chains.max(1);
     let total = u64::from(settings.spp) * u64::from(cw) * u64::from(ch);
     let per_chain = total.div_ceil(chains as u64);

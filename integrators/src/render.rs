@@ -68,6 +68,22 @@ impl Settings {
     }
 }
 
+impl Settings {
+    /// The worker threads these settings ask for.
+    ///
+    /// # Errors
+    /// If the threads cannot start.
+    pub fn pool(&self) -> Result<rayon::ThreadPool, String> {
+        let mut builder = rayon::ThreadPoolBuilder::new();
+        if let Some(n) = self.threads {
+            builder = builder.num_threads(n);
+        }
+        builder
+            .build()
+            .map_err(|e| format!("cannot start the worker threads: {e}"))
+    }
+}
+
 /// What a render produced.
 #[derive(Debug)]
 pub struct Rendered {
@@ -233,13 +249,7 @@ pub fn render_tiles<T: Send>(
     let out_of_time = || {
         stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
     };
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = settings.threads {
-        builder = builder.num_threads(n);
-    }
-    let pool = builder
-        .build()
-        .map_err(|e| format!("cannot start the worker threads: {e}"))?;
+    let pool = settings.pool()?;
     let complete = pool.install(|| {
         tiles
             .par_iter()
