@@ -7,6 +7,7 @@
 //! - The keyhole box: BDPT should beat path tracing, and tridirectional
 //!   tracing, which samples segments through the keyhole, BDPT.
 //! - Aether's cbox-sphere: gradient-domain path tracing against path tracing.
+//! - Veach's door: primary-sample-space MLT against BDPT.
 //!
 //! ```text
 //! cargo run --release -p examples --example equal_time -- \
@@ -33,7 +34,7 @@ struct Case {
     claims: &'static [(&'static str, &'static str)],
 }
 
-const CASES: [Case; 3] = [
+const CASES: [Case; 4] = [
     Case {
         name: "veach_bidir",
         file: "../shared/scenes/aether/veach_bidir/bidir-bdpt.xml",
@@ -46,6 +47,12 @@ const CASES: [Case; 3] = [
         file: "scenes/cbox_tridir_keyhole.xml",
         integrators: &["path", "bdpt", "tridir"],
         claims: &[("bdpt", "path"), ("tridir", "bdpt")],
+    },
+    Case {
+        name: "veach_door",
+        file: "../shared/scenes/aether/veach_door/door-bdpt.xml",
+        integrators: &["bdpt", "pssmlt"],
+        claims: &[("pssmlt", "bdpt")],
     },
     Case {
         name: "cbox-sphere",
