@@ -17,7 +17,7 @@ use aether_strategies::spectrum::luminance;
 use indicatif::{ProgressBar, ProgressStyle};
 use integrators::output::{Comparison, read_exr, write_exr, write_png};
 
-use crate::{load, render_for, workspace};
+use crate::{render_for, workspace};
 
 /// What to render and where to write it.
 #[derive(Clone, Debug)]
@@ -274,10 +274,8 @@ fn scene_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
 fn load_scaled(o: &Options, name: &str, file: &Path) -> Result<Scene, String> {
     let replaced = REPLACED.iter().find(|(from, _)| *from == name);
     let file = replaced.map_or(file.to_path_buf(), |(_, to)| workspace().join(to));
-    let full = Scene::load(&file, &HashMap::new()).map_err(|e| e.to_string())?;
-    let scale = f64::from(o.width) / f64::from(full.film.width);
-    let relative = file.strip_prefix(workspace()).unwrap_or(&file);
-    let mut scene = load(&relative.display().to_string(), scale)?;
+    let mut scene = Scene::load(&file, &HashMap::new()).map_err(|e| e.to_string())?;
+    scene.film.scale_to_width(o.width);
     if scene.integrator.max_depth < 0 {
         scene.integrator.max_depth = 6;
     }

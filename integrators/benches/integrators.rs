@@ -134,10 +134,7 @@ fn shared(file: &str, width: u32) -> Result<Scene, String> {
         .join("../../shared/scenes/aether")
         .join(file);
     let mut scene = Scene::load(&path, &HashMap::new()).map_err(|e| e.to_string())?;
-    let aspect = f64::from(scene.film.height) / f64::from(scene.film.width);
-    scene.film.width = width;
-    scene.film.height = ((f64::from(width) * aspect).round() as u32).max(1);
-    scene.film.crop = [0, 0, scene.film.width, scene.film.height];
+    scene.film.scale_to_width(width);
     // Aether's integrators stop at depth 6 where a scene sets no limit.
     if scene.integrator.max_depth < 0 {
         scene.integrator.max_depth = 6;

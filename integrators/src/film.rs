@@ -42,6 +42,24 @@ impl Film {
         self.dropped.fetch_add(dropped, Ordering::Relaxed);
     }
 
+    /// A film that holds `image` (row by row) at the pixels for which
+    /// `rendered` holds, for integrators that make their image themselves.
+    #[must_use]
+    pub fn from_image(
+        width: u32,
+        height: u32,
+        image: &[[f64; 3]],
+        rendered: impl Fn(usize) -> bool,
+    ) -> Self {
+        let mut film = Film::new(width, height);
+        for (i, c) in image.iter().enumerate() {
+            if rendered(i) {
+                film.set_pixel(i as u32 % width, i as u32 / width, *c, 1, 0);
+            }
+        }
+        film
+    }
+
     /// Counts `dropped` samples more, dropped before they reached the film.
     pub fn count_dropped(&mut self, dropped: u64) {
         self.dropped.fetch_add(dropped, Ordering::Relaxed);

@@ -26,8 +26,8 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, Split, StrategyRef,
-    densities_of_split, replay_jacobian, weight_of_shift,
+    DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, densities_of_split,
+    replay_jacobian, weight_of_shift,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection};
@@ -38,11 +38,11 @@ use aether_strategies::scene::{GradientSettings, Scene};
 use aether_strategies::subpath::{End, Subpath};
 use aether_strategies::vertex::SceneVertex;
 use glam::DVec3;
-use smallvec::SmallVec;
 
 use crate::estimator::path_limits;
 use crate::film::Film;
 use crate::film::is_valid;
+use crate::path::techniques;
 use crate::poisson::{Norm, reconstruct};
 use crate::render::{Rendered, Settings, Tile, render_tiles, repeat_passes};
 
@@ -163,17 +163,6 @@ impl<'s> GradientPathTracer<'s> {
             [&lens as &dyn DynStrategy<_>, &looks[k], &bsdf].map(StrategyRef::One)
         });
         let by_light = [(StrategyRef::One(&direct as &dyn DynStrategy<_>), false)];
-        let splits = |n: usize| -> SmallVec<[Split<'_, SceneVertex>; 2]> {
-            // What the camera sees first has one technique.
-            let by_bsdf = Split::new(n, &[]);
-            if n == 2 {
-                [by_bsdf].into_iter().collect()
-            } else {
-                [by_bsdf, Split::new(n - 1, &by_light)]
-                    .into_iter()
-                    .collect()
-            }
-        };
 
         DENSITIES.with_borrow_mut(DensityCache::clear);
         let start = rng.clone();
@@ -216,7 +205,7 @@ impl<'s> GradientPathTracer<'s> {
              base: &RandomSequence<'_, SceneVertex>,
              offsets: &[Option<(&Offset<'_>, DVec3, f64)>; 4]| {
                 let n = base.len();
-                let splits = splits(n);
+                let splits = techniques(n, &by_light);
                 let dx = DENSITIES.with_borrow_mut(|c| {
                     densities_of_split(base, &cameras[0], &[], &splits, Some(c))
                 });
@@ -455,15 +444,9 @@ impl Gradients {
 
     /// A render result whose film holds `image` at the rendered pixels.
     #[must_use]
-    pub fn rendered(&self, image: &[[f32; 3]], spp: u32) -> Rendered {
-        let mut film = Film::new(self.width, self.height);
-        for (i, c) in image.iter().enumerate() {
-            if self.rendered[i] {
-                let (x, y) = (i as u32 % self.width, i as u32 / self.width);
-                let sum = c.map(|v| f64::from(v) * f64::from(spp));
-                film.set_pixel(x, y, sum, spp, 0);
-            }
-        }
+    pub fn rendered(&self, image: &[[f32; 3]]) -> Rendered {
+        let image: Vec<[f64; 3]> = image.iter().map(|c| c.map(f64::from)).collect();
+        let mut film = Film::from_image(self.width, self.height, &image, |i| self.rendered[i]);
         film.count_dropped(self.dropped);
         Rendered {
             film,

@@ -159,11 +159,7 @@ fn run(args: RenderArgs) -> Result<(), String> {
         if width == 0 {
             return Err("--width must be positive".to_string());
         }
-        let film = &mut scene.film;
-        let aspect = f64::from(film.height) / f64::from(film.width);
-        film.height = ((f64::from(width) * aspect).round() as u32).max(1);
-        film.width = width;
-        film.crop = [0, 0, film.width, film.height];
+        scene.film.scale_to_width(width);
     }
     if let Some(d) = args.max_depth {
         scene.integrator.max_depth = d;

@@ -236,15 +236,12 @@ pub fn render_mlt(
         Ok((image, mutations, bootstrap as u64 + mutations, rays))
     })?;
     bar.finish_and_clear();
-    let mut film = Film::new(w, h);
     let [cx, cy, _, _] = scene.film.crop;
-    let spp = settings.spp.max(1);
-    for y in cy..cy + ch {
-        for x in cx..cx + cw {
-            let c = image[(y * w + x) as usize];
-            film.set_pixel(x, y, c.map(|v| v * f64::from(spp)), spp, 0);
-        }
-    }
+    let in_crop = |i: usize| {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
+    };
+    let film = Film::from_image(w, h, &image, in_crop);
     Ok(Rendered {
         film,
         seconds: start.elapsed().as_secs_f64(),

@@ -12,6 +12,7 @@ use aether_strategies::scene::Scene;
 use aether_strategies::subpath::{End, Subpath};
 use aether_strategies::vertex::SceneVertex;
 use glam::{DVec3, Vec3};
+use smallvec::SmallVec;
 
 use crate::estimator::{Estimator, Rng, Splats, path_limits};
 
@@ -102,12 +103,25 @@ pub(crate) fn weight(
     own: usize,
     heuristic: Heuristic,
 ) -> f64 {
-    let n = path.len();
     let by_light = [(StrategyRef::One(direct), false)];
-    // What the camera sees first has one technique: direct sampling cannot see through the lens.
-    let splits = [Split::new(n, &[]), Split::new(n - 1, &by_light)];
-    let splits = if n == 2 { &splits[..1] } else { &splits[..] };
-    let (w, p) = weight_of_split(path, camera, &[], splits, own, heuristic, None);
+    let splits = techniques(path.len(), &by_light);
+    let (w, p) = weight_of_split(path, camera, &[], &splits, own, heuristic, None);
     let w_over_p = Some(w / p.value()).filter(|r| r.is_finite() && !p.is_zero());
     w_over_p.unwrap_or(0.0)
+}
+
+/// A path tracer's techniques for paths of `n` vertices: BSDF sampling
+/// throughout (index 0), and direct light sampling (`by_light`) for the
+/// last vertex (index 1), except for what the camera sees first, which
+/// direct sampling cannot see through the lens.
+pub(crate) fn techniques<'s>(
+    n: usize,
+    by_light: &[(StrategyRef<'s, SceneVertex>, bool)],
+) -> SmallVec<[Split<'s, SceneVertex>; 2]> {
+    let by_bsdf = Split::new(n, &[]);
+    if n == 2 {
+        [by_bsdf].into_iter().collect()
+    } else {
+        [by_bsdf, Split::new(n - 1, by_light)].into_iter().collect()
+    }
 }

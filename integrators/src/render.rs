@@ -135,7 +135,7 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
     if scene.integrator.name == "gpt" {
         let tracer = GradientPathTracer::new(scene)?;
         let g = render_gradients(scene, &tracer, settings, stop)?;
-        return Ok(g.rendered(&g.reconstruct(&scene.integrator.gradient), settings.spp));
+        return Ok(g.rendered(&g.reconstruct(&scene.integrator.gradient)));
     }
     render_with(scene, estimator(scene)?.as_ref(), settings, stop)
 }

@@ -220,6 +220,17 @@ pub struct Film {
     pub spp: u32,
 }
 
+impl Film {
+    /// Resizes the film to `width` pixels (at least one), the height
+    /// keeping the aspect ratio; the crop window becomes the whole film.
+    pub fn scale_to_width(&mut self, width: u32) {
+        let aspect = f64::from(self.height) / f64::from(self.width);
+        self.width = width.max(1);
+        self.height = ((f64::from(self.width) * aspect).round() as u32).max(1);
+        self.crop = [0, 0, self.width, self.height];
+    }
+}
+
 /// The integrator the scene asks for, with its parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct IntegratorSettings {
