@@ -296,6 +296,27 @@ impl PathDensity {
         self.zeros > 0 || self.value == 0.0 || !self.value.is_finite()
     }
 
+    /// The density of a mixture whose components have densities `self`
+    /// and `other` (each already weighted by its probability): a component
+    /// with more Dirac factors dominates, equal orders add.
+    #[must_use]
+    pub fn plus(self, other: PathDensity) -> PathDensity {
+        if other.is_zero() {
+            return self;
+        }
+        if self.is_zero() {
+            return other;
+        }
+        match other.dirac.cmp(&self.dirac) {
+            std::cmp::Ordering::Greater => other,
+            std::cmp::Ordering::Less => self,
+            std::cmp::Ordering::Equal => PathDensity {
+                value: self.value + other.value,
+                ..self
+            },
+        }
+    }
+
     /// `other / self` in the sense of MIS: infinite if `other` has more Dirac
     /// factors, zero if it has fewer, the ratio of values if they match.
     #[must_use]
@@ -346,6 +367,18 @@ mod tests {
         assert_eq!(dirac.ratio_to(cont), 0.0);
         let dirac2 = PathDensity::ONE.times(Density::dirac(0.25, Measure::SolidAngle));
         assert_eq!(dirac.ratio_to(dirac2), 0.5);
+    }
+
+    #[test]
+    fn path_mixtures_keep_the_highest_dirac_order() {
+        let a = PathDensity::ONE.times(Density::new(2.0, Measure::Area));
+        let b = PathDensity::ONE.times(Density::new(3.0, Measure::Area));
+        let d = PathDensity::ONE.times(Density::dirac(0.5, Measure::SolidAngle));
+        let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
+        assert_eq!(a.plus(b).value(), 5.0);
+        assert_eq!(a.plus(d), d);
+        assert_eq!(zero.plus(a), a);
+        assert_eq!(a.plus(zero), a);
     }
 
     #[test]

@@ -29,6 +29,9 @@
 //!   reverse, pdf) and [`combine`] with a [`Heuristic`].
 //! * Shifts between paths (gradient-domain rendering): [`replay_jacobian`]
 //!   and [`weight_of_shift`], from the same conditional densities.
+//! * Metropolis mutations ([`Mutation`]): proposals written as sampling
+//!   code over a [`Mutator`]; [`transition_density`] runs the same code in
+//!   density mode to give T(y | x), copied vertices counting as Dirac.
 //! * Verification: [`harness`] checks any distribution or strategy against
 //!   finite differences, chi-square histograms and MIS partition of unity.
 //! * [`testing`]: a tiny analytic scene and strategies for examples and tests.
@@ -45,6 +48,7 @@ mod distribution;
 mod frame;
 pub mod harness;
 mod mis;
+mod mutation;
 mod primary;
 pub mod primitives;
 mod rng;
@@ -64,6 +68,7 @@ pub use mis::{
     DensityCache, Heuristic, Split, Weights, combine, densities_of_split, weight_of_split,
     weights_of_split_variants,
 };
+pub use mutation::{ChainPath, Mutation, Mutator, acceptance, propose, transition_density};
 pub use primary::{PrimarySamples, Replay};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};

@@ -24,7 +24,7 @@ thread_local! {
 
 /// A fresh vertex identity. Ids come in per-thread blocks of 2³², so they
 /// are unique across threads without contention; 0 is never used.
-fn fresh_id() -> u64 {
+pub(crate) fn fresh_id() -> u64 {
     NEXT_ID.with(|c| {
         let (mut next, mut end) = c.get();
         if next == end {

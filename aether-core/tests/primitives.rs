@@ -44,6 +44,20 @@ fn uniform_disk() {
 }
 
 #[test]
+fn exponential_disk() {
+    run(&ExponentialDisk::new(0.05, 2.0), &Grid::new(Disk(2.0), 16));
+}
+
+#[test]
+fn exponential_cone() {
+    let r = run(
+        &ExponentialCone::new(0.15, 1.2),
+        &Grid::new(SphereDirections, 16),
+    );
+    assert!(r.jacobian_checked > 400, "{r}");
+}
+
+#[test]
 fn cosine_hemisphere() {
     let r = run(&CosineHemisphere, &Grid::new(SphereDirections, 16));
     assert!(r.jacobian_checked > 400, "{r}");

@@ -8,6 +8,7 @@
 //! | tabulated | [`PiecewiseConstant1D`], [`PiecewiseConstant2D`] | length, area |
 //! | planar | [`UniformDisk`], [`UniformTriangle`] | area |
 //! | directions | [`CosineHemisphere`], [`UniformHemisphere`], [`UniformSphere`], [`UniformCone`] | solid angle |
+//! | perturbations | [`ExponentialDisk`] (plane offsets), [`ExponentialCone`] (directions about an axis), log-uniform in size | area, solid angle |
 //! | microfacets | [`GgxVisibleNormals`], [`BeckmannNormals`] | solid angle |
 //! | scattering | [`Reflect`], [`Refract`] (half-vector Jacobians), [`DiracDirection`] | solid angle, Dirac |
 //! | projections | [`Gnomonic`] (film plane → directions), [`Equirect`] (unit square → directions) | solid angle |
@@ -20,6 +21,7 @@
 mod directions;
 mod discrete;
 mod microfacet;
+mod perturbations;
 mod piecewise;
 mod planar;
 mod projections;
@@ -29,6 +31,7 @@ mod uniform;
 pub use directions::{CosineHemisphere, UniformCone, UniformHemisphere, UniformSphere};
 pub use discrete::{DiscreteDistribution, DiscreteError};
 pub use microfacet::{BeckmannNormals, GgxVisibleNormals};
+pub use perturbations::{ExponentialCone, ExponentialDisk};
 pub use piecewise::{PiecewiseConstant1D, PiecewiseConstant2D};
 pub use planar::{UniformDisk, UniformTriangle};
 pub use projections::{Affine2, Equirect, Gnomonic, Planar, SpherePoint};
