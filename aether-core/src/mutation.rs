@@ -198,7 +198,7 @@ impl<'m, V: Vertex> Mutator<'m, V> {
             }
         };
         let w = weights[k];
-        if !(w > 0.0) {
+        if w.is_nan() || w <= 0.0 {
             return None;
         }
         self.density = self.density.times(Density::discrete(w / total));
@@ -430,7 +430,7 @@ pub fn transition_density<V: Vertex>(
 /// [`transition_density`] gives them.
 #[must_use]
 pub fn acceptance(f_x: f64, f_y: f64, forward: PathDensity, backward: PathDensity) -> f64 {
-    if !(f_x > 0.0) {
+    if f_x.is_nan() || f_x <= 0.0 {
         return 1.0;
     }
     // T(x|y) / T(y|x), with Dirac orders compared first.
