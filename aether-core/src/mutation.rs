@@ -74,6 +74,16 @@ impl<V: Vertex> ChainPath<V> {
         self.vertices.is_empty()
     }
 
+    /// True if the edge from vertex `i` to `i + 1` is an edge of `other`,
+    /// both ends copied from it (so that it needs no new visibility test).
+    #[must_use]
+    pub fn edge_copied_from(&self, i: usize, other: &ChainPath<V>) -> bool {
+        let (Some(a), Some(b)) = (self.ids.get(i), self.ids.get(i + 1)) else {
+            return false;
+        };
+        other.ids.windows(2).any(|w| w[0] == *a && w[1] == *b)
+    }
+
     /// True if vertex `i` of this path is vertex `j` of `other` (copied, not
     /// merely at the same place).
     #[must_use]
@@ -433,9 +443,13 @@ pub fn acceptance(f_x: f64, f_y: f64, forward: PathDensity, backward: PathDensit
     if f_x.is_nan() || f_x <= 0.0 {
         return 1.0;
     }
-    // T(x|y) / T(y|x), with Dirac orders compared first.
-    let ratio = forward.ratio_to(backward);
-    let a = f_y / f_x * ratio;
+    if forward.is_zero() {
+        return 0.0;
+    }
+    // The values, not Dirac orders: F(y) T(x | y) and F(x) T(y | x) carry
+    // the same Dirac factors (those of copied vertices, y's new ones and
+    // x's replaced ones), F per unit Dirac mass and T in masses.
+    let a = f_y * backward.value() / (f_x * forward.value());
     if a.is_nan() { 0.0 } else { a.clamp(0.0, 1.0) }
 }
 

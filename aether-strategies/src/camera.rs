@@ -6,7 +6,9 @@
 //! Conventions are Mitsuba's: the camera looks along its local +z, with x
 //! to the left, and raster coordinates grow rightwards and downwards.
 
-use aether_core::primitives::{Affine2, Gnomonic, PiecewiseConstant2D, Planar, UniformDisk};
+use aether_core::primitives::{
+    Affine2, ExponentialDisk, Gnomonic, PiecewiseConstant2D, Planar, UniformDisk, UniformSquare,
+};
 use aether_core::{
     DiracPoint, Distribution, Either, Frame, InFrame, Intersect, OnSurface, Prefix, Step, Strategy,
 };
@@ -183,6 +185,42 @@ impl Camera {
         InFrame::new(self.frame, Gnomonic::new(film, self.shift(lens)))
     }
 
+    /// The directions of rays leaving `lens` toward the whole film,
+    /// uniformly on it: the first edge of a path whose pixel is not chosen.
+    pub fn film_directions(&self, lens: &SceneVertex) -> impl Distribution<Value = Vec3> + '_ {
+        let (scale, offset) = self.plane;
+        let size = Vec2::new(self.size[0] as f32, self.size[1] as f32);
+        let film = Affine2::new(UniformSquare, scale * size, offset);
+        InFrame::new(self.frame, Gnomonic::new(film, self.shift(lens)))
+    }
+
+    /// The directions of rays leaving `lens` toward film points offset from
+    /// raster position `center` by `offsets` (in pixels): Veach's lens
+    /// perturbation.
+    pub fn perturbed_directions(
+        &self,
+        lens: &SceneVertex,
+        center: Vec2,
+        offsets: ExponentialDisk,
+    ) -> impl Distribution<Value = Vec3> + '_ {
+        let (scale, offset) = self.plane;
+        let film = Affine2::new(offsets, scale, offset + scale * center);
+        InFrame::new(self.frame, Gnomonic::new(film, self.shift(lens)))
+    }
+
+    /// The angle one pixel subtends at the film's centre, in radians.
+    #[must_use]
+    pub fn pixel_angle(&self) -> f32 {
+        self.plane.0.x.abs()
+    }
+
+    /// True if the camera has a lens of positive radius (its vertex is
+    /// sampled by area, not a Dirac point).
+    #[must_use]
+    pub fn has_lens(&self) -> bool {
+        self.lens_radius > 0.0
+    }
+
     /// The raster position (pixels, y down) where a ray from `lens` in
     /// world direction `toward` meets the film, if it is in front.
     #[must_use]
@@ -290,6 +328,79 @@ impl Strategy<SceneVertex> for CameraPosition<'_> {
     }
     fn depth_class(&self, _prefix_len: usize) -> usize {
         0
+    }
+}
+
+/// The first hit of a primary ray toward any point of the film, uniformly:
+/// the camera edge of a Metropolis mutation that resamples it.
+#[derive(Clone, Copy, Debug)]
+pub struct FilmDirection<'a> {
+    camera: &'a Camera,
+    scene: &'a Scene,
+}
+
+impl<'a> FilmDirection<'a> {
+    /// Primary rays of `camera` into `scene`.
+    #[must_use]
+    pub fn new(camera: &'a Camera, scene: &'a Scene) -> Self {
+        FilmDirection { camera, scene }
+    }
+}
+
+impl Strategy<SceneVertex> for FilmDirection<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, SceneVertex>,
+    ) -> impl Distribution<Value = Step<SceneVertex>> + 'a {
+        let lens = prefix.last().expect("the camera vertex comes first");
+        Intersect::new(lens, self.camera.film_directions(lens), self.scene)
+    }
+    fn memory(&self) -> usize {
+        1
+    }
+}
+
+/// The first hit of a primary ray toward a film point near `center`
+/// (raster coordinates): Veach's lens perturbation of a path's first edge.
+#[derive(Clone, Copy, Debug)]
+pub struct PerturbedFilm<'a> {
+    camera: &'a Camera,
+    scene: &'a Scene,
+    center: Vec2,
+    offsets: ExponentialDisk,
+}
+
+impl<'a> PerturbedFilm<'a> {
+    /// Rays toward `center` moved by `offsets` (pixels).
+    #[must_use]
+    pub fn new(
+        camera: &'a Camera,
+        scene: &'a Scene,
+        center: Vec2,
+        offsets: ExponentialDisk,
+    ) -> Self {
+        PerturbedFilm {
+            camera,
+            scene,
+            center,
+            offsets,
+        }
+    }
+}
+
+impl Strategy<SceneVertex> for PerturbedFilm<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: Prefix<'a, SceneVertex>,
+    ) -> impl Distribution<Value = Step<SceneVertex>> + 'a {
+        let lens = prefix.last().expect("the camera vertex comes first");
+        let directions = self
+            .camera
+            .perturbed_directions(lens, self.center, self.offsets);
+        Intersect::new(lens, directions, self.scene)
+    }
+    fn memory(&self) -> usize {
+        1
     }
 }
 

@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod integrand;
 pub mod lights;
 pub mod mesh;
+pub mod mutations;
 pub mod portal;
 pub mod scattering;
 pub mod scene;

@@ -12,7 +12,8 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, RandomSequence, StrategyRef, weights_of_split_variants,
+    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, RandomSequence, StrategyRef,
+    weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -191,8 +192,119 @@ fn walk<'a>(
     path
 }
 
+/// A path BDPT estimated, with its MIS-weighted contribution summed over
+/// the pixels it reached: the seeds of Veach's Metropolis light transport.
+#[derive(Clone, Debug)]
+pub struct SeedPath {
+    /// The vertices, camera first.
+    pub vertices: SmallVec<[SceneVertex; INLINE_VERTICES]>,
+    /// The weighted contribution, summed over pixels.
+    pub weighted: DVec3,
+    /// True if it was splatted (found by a light subpath that reached the
+    /// camera), false if it belongs to the sample's pixel.
+    pub splat: bool,
+}
+
 impl Estimator for Bdpt<'_> {
     fn sample(&self, pixel: [u32; 2], rng: &mut Rng, splats: &mut Splats) -> Vec3 {
+        self.sample_into(pixel, rng, splats, None)
+    }
+}
+
+impl Bdpt<'_> {
+    /// As [`Estimator::sample`], also recording every path with a
+    /// contribution in `seeds`.
+    pub fn sample_seeds(
+        &self,
+        pixel: [u32; 2],
+        rng: &mut Rng,
+        splats: &mut Splats,
+        seeds: &mut Vec<SeedPath>,
+    ) -> Vec3 {
+        self.sample_into(pixel, rng, splats, Some(seeds))
+    }
+
+    /// Samples only technique (s, n − s) for paths of `n` vertices: the
+    /// camera subpath's first s vertices joined to the light subpath's
+    /// first n − s, weighed by MIS against every technique of that length
+    /// (multiplexed MLT). Returns the estimate for `pixel` (s ≥ 2) or
+    /// pushes it to `splats` (s ≤ 1).
+    pub fn sample_technique(
+        &self,
+        pixel: [u32; 2],
+        (n, s): (usize, usize),
+        rng: &mut Rng,
+        splats: &mut Splats,
+    ) -> Vec3 {
+        let Some(lights) = self.lights.as_ref() else {
+            return Vec3::ZERO;
+        };
+        if n < 2 || n > self.max_vertices || s > n || (s == 0 && !self.lens) {
+            return Vec3::ZERO;
+        }
+        let kit = &self.kit(lights, pixel);
+        let f = self.integrand(lights);
+        DENSITIES.with_borrow_mut(DensityCache::clear);
+        let t = n - s;
+        let cam = match s {
+            0 => RandomSequence::new(),
+            1 => {
+                let mut c = RandomSequence::new();
+                c.append_sample(&kit.lens, rng);
+                c
+            }
+            _ => walk([&kit.lens, &kit.look], &kit.scatter, s, rng),
+        };
+        let light = match t {
+            0 | 1 => RandomSequence::new(),
+            _ => walk([&kit.emit, &kit.leave], &kit.gather, t, rng),
+        };
+        if cam.len() != s || (t >= 2 && light.len() != t) {
+            return Vec3::ZERO;
+        }
+        let eye = Subpath::of(f, End::Camera, cam.vertices());
+        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        let mut run = Run {
+            kit,
+            pixel,
+            rng,
+            splats,
+            path: RandomSequence::new(),
+            seeds: None,
+        };
+        let on_lens = |v: &SceneVertex| v.site == Site::Lens;
+        let radiance = if s == 0 {
+            if !light.vertices().last().is_some_and(on_lens) {
+                return Vec3::ZERO;
+            }
+            run.path.extend_from(&light, 0..light.len(), true);
+            self.contribute(&mut run, Split::Bdpt(0), ends.1.product(light.len() - 1))
+        } else {
+            self.join_one(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s), t)
+        };
+        radiance.as_vec3()
+    }
+
+    /// The number of techniques [`sample_technique`](Self::sample_technique)
+    /// offers for paths of `n` vertices: s from 1 (0 with a thin lens) to n.
+    #[must_use]
+    pub fn techniques(&self, n: usize) -> usize {
+        n + usize::from(self.lens)
+    }
+
+    /// The longest path, in vertices.
+    #[must_use]
+    pub fn max_vertices(&self) -> usize {
+        self.max_vertices
+    }
+
+    fn sample_into(
+        &self,
+        pixel: [u32; 2],
+        rng: &mut Rng,
+        splats: &mut Splats,
+        seeds: Option<&mut Vec<SeedPath>>,
+    ) -> Vec3 {
         let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
             return Vec3::ZERO;
         };
@@ -211,6 +323,7 @@ impl Estimator for Bdpt<'_> {
             rng,
             splats,
             path: RandomSequence::new(),
+            seeds,
         };
         let mut radiance = DVec3::ZERO;
         for s in 1..=cam.len() {
@@ -253,6 +366,7 @@ struct Run<'r, 'a, 's> {
     rng: &'r mut Rng<'r>,
     splats: &'r mut Splats,
     path: Path<'a>,
+    seeds: Option<&'r mut Vec<SeedPath>>,
 }
 
 impl<'s> Bdpt<'s> {
@@ -268,24 +382,39 @@ impl<'s> Bdpt<'s> {
         (light, lamp): (&Path<'a>, &Subpath<'_>),
         own: Split,
     ) -> DVec3 {
-        let (mut radiance, open) = (DVec3::ZERO, side.connectible(n - 1));
+        let mut radiance = DVec3::ZERO;
         for t in 0..=lamp.len().max(1).min(self.max_vertices - n) {
-            run.path.clear();
-            run.path.extend_from(head, 0..n, false);
-            let through = match t {
-                0 => side.emitted(n),
-                1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
-                    side.connect_lamp(n, &run.path.vertices()[n])
-                }
-                2.. if open && lamp.connectible(t - 1) => side.connect(n, lamp, t),
-                _ => continue,
-            };
-            if t >= 2 && through != DVec3::ZERO {
-                run.path.extend_from(light, 0..t, true);
-            }
-            radiance += self.contribute(run, own, through);
+            radiance += self.join_one(run, head, (side, n), (light, lamp), own, t);
         }
         radiance
+    }
+
+    /// One term of [`join`](Self::join): the camera side's first `n`
+    /// vertices joined to the light side's first `t`.
+    fn join_one<'a>(
+        &self,
+        run: &mut Run<'_, 'a, 's>,
+        head: &Path<'a>,
+        (side, n): (&Subpath<'_>, usize),
+        (light, lamp): (&Path<'a>, &Subpath<'_>),
+        own: Split,
+        t: usize,
+    ) -> DVec3 {
+        let open = side.connectible(n - 1);
+        run.path.clear();
+        run.path.extend_from(head, 0..n, false);
+        let through = match t {
+            0 => side.emitted(n),
+            1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
+                side.connect_lamp(n, &run.path.vertices()[n])
+            }
+            2.. if open && t <= lamp.len() && lamp.connectible(t - 1) => side.connect(n, lamp, t),
+            _ => return DVec3::ZERO,
+        };
+        if t >= 2 && through != DVec3::ZERO {
+            run.path.extend_from(light, 0..t, true);
+        }
+        self.contribute(run, own, through)
     }
 
     /// The weighted estimate of `run.path`, sampled by `own`, whose
@@ -305,7 +434,7 @@ impl<'s> Bdpt<'s> {
             false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
         let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
-        let mut seen = DVec3::ZERO;
+        let (mut seen, mut weighted) = (DVec3::ZERO, DVec3::ZERO);
         for (&(j, _), (w, p)) in pixels
             .iter()
             .zip(self.weights(run.kit, &looks, own, &run.path))
@@ -316,9 +445,22 @@ impl<'s> Bdpt<'s> {
             }
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
-                e if splat => run.splats.push((j, e.as_vec3())),
-                e => seen = e,
+                e if splat => {
+                    weighted += e;
+                    run.splats.push((j, e.as_vec3()));
+                }
+                e => {
+                    weighted += e;
+                    seen = e;
+                }
             }
+        }
+        if let Some(seeds) = run.seeds.as_deref_mut().filter(|_| weighted != DVec3::ZERO) {
+            seeds.push(SeedPath {
+                vertices: v.iter().copied().collect(),
+                weighted,
+                splat,
+            });
         }
         seen
     }

@@ -12,7 +12,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use integrators::bdpt::Bdpt;
 use integrators::cornell::cornell_box;
 use integrators::gradient::{GradientPathTracer, render_gradients};
-use integrators::mlt::{MltSettings, render_mlt};
+use integrators::mlt::{MltSettings, Variant, render_mlt};
 use integrators::output::{Comparison, read_exr, write_exr, write_png};
 use integrators::render::{Settings, render, render_with};
 
@@ -30,7 +30,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Render a scene (the built-in Cornell box without one) to EXR and PNG.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Compare EXR images with a reference: means, their relative difference and RMSE.
     Compare {
         /// The reference image.
@@ -74,9 +74,15 @@ enum Integrator {
     /// Gradient-domain path tracing: writes the reconstruction, and the
     /// primal and gradient images beside it.
     Gpt,
+    /// Veach's path-space Metropolis light transport; `--spp` counts
+    /// mutations per pixel.
+    Mlt,
     /// Primary-sample-space Metropolis light transport on BDPT; `--spp`
     /// counts mutations per pixel.
     Pssmlt,
+    /// Multiplexed Metropolis light transport on BDPT; `--spp` counts
+    /// mutations per pixel.
+    Mmlt,
 }
 
 #[derive(clap::Args, Debug)]
@@ -116,15 +122,26 @@ struct RenderArgs {
     /// Longest paths, in vertices, with technique images.
     #[arg(long, default_value_t = 5)]
     technique_vertices: usize,
-    /// PSSMLT: probability of a large step.
-    #[arg(long, default_value_t = 0.3)]
-    large_step: f64,
-    /// PSSMLT: independent chains (the image depends on them, not on the threads).
-    #[arg(long, default_value_t = 16)]
-    chains: usize,
-    /// PSSMLT: bootstrap samples for the normalisation and the chains' starts.
-    #[arg(long, default_value_t = 100_000)]
-    bootstrap: usize,
+    /// PSSMLT and MMLT: probability of a large step (default: the scene's pLarge, or 0.3).
+    #[arg(long)]
+    large_step: Option<f64>,
+    /// Metropolis: independent chains; the image depends on them, not on
+    /// the threads (default: the scene's chains or workUnits, or 16).
+    #[arg(long)]
+    chains: Option<usize>,
+    /// Metropolis: bootstrap samples for the normalisation and the chains'
+    /// starts (default: the scene's luminanceSamples, or 100000).
+    #[arg(long)]
+    bootstrap: Option<usize>,
+    /// Veach's MLT: relative frequencies of the bidirectional, lens, caustic
+    /// and multi-chain mutations, as four numbers `b,l,c,m` (default: the
+    /// scene's switches, or 1,1,1,1).
+    #[arg(long, value_parser = parse_mix)]
+    mutations: Option<[f64; 4]>,
+    /// Veach's MLT: samples per pixel of a separate direct-lighting pass
+    /// (default: the scene's directSamples; 0: none).
+    #[arg(long)]
+    direct_samples: Option<u32>,
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
@@ -132,6 +149,22 @@ struct RenderArgs {
     /// crop window becomes the whole film).
     #[arg(long)]
     width: Option<u32>,
+}
+
+fn parse_mix(s: &str) -> Result<[f64; 4], String> {
+    let parts: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let mix: [f64; 4] = parts
+        .try_into()
+        .map_err(|_| format!("'{s}' is not four numbers b,l,c,m"))?;
+    if mix.iter().any(|w| !(w.is_finite() && *w >= 0.0)) || mix[0] <= 0.0 {
+        return Err(format!(
+            "'{s}': frequencies must be finite and ≥ 0, and the bidirectional mutation's positive (the perturbations alone do not reach every path)"
+        ));
+    }
+    Ok(mix)
 }
 
 fn parse_param(s: &str) -> Result<(String, String), String> {
@@ -191,10 +224,14 @@ fn run(args: RenderArgs) -> Result<(), String> {
     if scene.integrator.name == "gpt" {
         return run_gradients(&scene, &settings, &stop, &args.output, args.exposure);
     }
+    let scene_mlt = MltSettings::for_scene(&scene);
     let mlt = MltSettings {
-        large_step: args.large_step,
-        chains: args.chains,
-        bootstrap: args.bootstrap,
+        large_step: args.large_step.unwrap_or(scene_mlt.large_step),
+        chains: args.chains.unwrap_or(scene_mlt.chains),
+        bootstrap: args.bootstrap.unwrap_or(scene_mlt.bootstrap),
+        mutations: args.mutations.unwrap_or(scene_mlt.mutations),
+        direct_samples: args.direct_samples.unwrap_or(scene_mlt.direct_samples),
+        ..scene_mlt
     };
     if !(0.0..=1.0).contains(&mlt.large_step) || mlt.chains == 0 || mlt.bootstrap == 0 {
         return Err(
@@ -214,7 +251,9 @@ fn run(args: RenderArgs) -> Result<(), String> {
             }
             r
         }
-        None if scene.integrator.name == "pssmlt" => render_mlt(&scene, mlt, &settings, &stop)?,
+        None if Variant::named(&scene.integrator.name).is_some() => {
+            render_mlt(&scene, mlt, &settings, &stop)?
+        }
         None => render(&scene, &settings, &stop)?,
     };
     let image = r.film.image();
@@ -289,7 +328,7 @@ fn run_gradients(
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => run(args),
+        Command::Render(args) => run(*args),
         Command::Compare { reference, images } => compare(&reference, &images),
     };
     match result {

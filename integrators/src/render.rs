@@ -20,7 +20,7 @@ use crate::estimator::{Estimator, Splats};
 use crate::film::{Film, SplatBuffer, is_valid};
 use crate::gradient::{GradientPathTracer, render_gradients};
 use crate::light::LightTracer;
-use crate::mlt::{MltSettings, render_mlt};
+use crate::mlt::{MltSettings, Variant, render_mlt};
 use crate::path::PathTracer;
 
 thread_local! {
@@ -105,8 +105,8 @@ pub struct Rendered {
 /// `bdpt` or `tridir`.
 ///
 /// # Errors
-/// For other names (MLT is not built yet; `gpt` is not an [`Estimator`]:
-/// see [`render`]), and
+/// For other names (`gpt` and the Metropolis methods are not
+/// [`Estimator`]s: see [`render`]), and
 /// where the estimator cannot be built (no portal for `tridir`).
 pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
     Ok(match scene.integrator.name.as_str() {
@@ -116,21 +116,22 @@ pub fn estimator(scene: &Scene) -> Result<Box<dyn Estimator + '_>, String> {
         "bdpt" | "tridir" => Box::new(Bdpt::for_scene(scene)?),
         other => {
             return Err(format!(
-                "the integrator '{other}' is not available here; use path, direct, light, bdpt, tridir (or gpt through render)"
+                "the integrator '{other}' is not available here; use path, direct, light, bdpt, tridir (or gpt, mlt, pssmlt, mmlt through render)"
             ));
         }
     })
 }
 
-/// Renders `scene` with the integrator it names ([`estimator`], or
+/// Renders `scene` with the integrator it names ([`estimator`],
 /// gradient-domain path tracing for `gpt`, whose film then holds the
-/// reconstruction).
+/// reconstruction, or a Metropolis method for `mlt`, `pssmlt` and `mmlt`,
+/// with the scene's parameters and `settings.spp` mutations per pixel).
 ///
 /// # Errors
 /// As [`estimator`], or if the worker threads cannot start.
 pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<Rendered, String> {
-    if scene.integrator.name == "pssmlt" {
-        return render_mlt(scene, MltSettings::default(), settings, stop);
+    if Variant::named(&scene.integrator.name).is_some() {
+        return render_mlt(scene, MltSettings::for_scene(scene), settings, stop);
     }
     if scene.integrator.name == "gpt" {
         let tracer = GradientPathTracer::new(scene)?;

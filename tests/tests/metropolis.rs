@@ -1,38 +1,55 @@
-//! Primary-sample-space MLT converges to BDPT's image on the built-in
-//! Cornell box: per-pixel differences consistent with the per-pixel
-//! variances over independent renders (a t-test at level 1 % whose failure
-//! rate may not exceed 1 % plus three binomial deviations), and image
-//! means within 1 % with a standard error below a third of that.
+//! Each Metropolis method (Veach's path-space MLT, PSSMLT and multiplexed
+//! MLT) converges to BDPT's image on the built-in Cornell box: per-pixel
+//! differences consistent with the per-pixel variances over independent
+//! renders (a t-test at level 1 % whose failure rate may not exceed 1 %
+//! plus three binomial deviations), and image means within 1 % with a
+//! standard error below a third of that.
 
 use std::sync::atomic::AtomicBool;
 
 use integrators::cornell::cornell_box;
-use integrators::mlt::{MltSettings, render_mlt};
+use integrators::mlt::{MltSettings, Variant, render_mlt};
 use integrators::render::{Settings, render};
 use tests::{Estimate, assert_agree};
 
 const RENDERS: u32 = 8;
 
-#[test]
-fn pssmlt_converges_to_bdpt_on_the_built_in_cornell_box() {
+fn converges(variant: Variant, name: &str, mutations_per_pixel: u32) {
     let mut scene = cornell_box(16, 16, 1);
     scene.integrator.max_depth = 5;
     scene.film.filter = "box".into();
     let stop = AtomicBool::new(false);
     let mlt = MltSettings {
+        variant,
         bootstrap: 50_000,
         ..MltSettings::default()
     };
     let images: Vec<_> = (1..=u64::from(RENDERS))
         .map(|seed| {
-            let r = render_mlt(&scene, mlt, &Settings::new(256, seed), &stop).unwrap();
+            let settings = Settings::new(mutations_per_pixel, seed);
+            let r = render_mlt(&scene, mlt, &settings, &stop).unwrap();
             assert!(r.complete);
             r.film.image()
         })
         .collect();
-    let pssmlt = Estimate::from_images("pssmlt", &images);
+    let estimate = Estimate::from_images(name, &images);
     let bdpt = Estimate::of(&mut scene, "bdpt", RENDERS, 128);
-    assert_agree("Cornell box", (&pssmlt, &bdpt), None, None, 1e-2);
+    assert_agree("Cornell box", (&estimate, &bdpt), None, None, 1e-2);
+}
+
+#[test]
+fn pssmlt_converges_to_bdpt_on_the_built_in_cornell_box() {
+    converges(Variant::Primary, "pssmlt", 256);
+}
+
+#[test]
+fn multiplexed_mlt_converges_to_bdpt_on_the_built_in_cornell_box() {
+    converges(Variant::Multiplexed, "mmlt", 1024);
+}
+
+#[test]
+fn veach_mlt_converges_to_bdpt_on_the_built_in_cornell_box() {
+    converges(Variant::Veach, "mlt", 1024);
 }
 
 #[test]

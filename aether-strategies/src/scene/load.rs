@@ -242,6 +242,42 @@ pub struct IntegratorSettings {
     pub rr_depth: i64,
     /// Gradient-domain path tracing's parameters.
     pub gradient: GradientSettings,
+    /// Metropolis light transport's parameters.
+    pub metropolis: MetropolisSettings,
+}
+
+/// Parameters of Metropolis light transport (Aether's `mymlt`, Mitsuba's
+/// `mlt` and `pssmlt`). The specular roughness threshold is shared with
+/// [`GradientSettings::roughness_threshold`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MetropolisSettings {
+    /// Independent samples that estimate the normalisation and seed the
+    /// chains (`luminanceSamples`; 100 000).
+    pub luminance_samples: u32,
+    /// Probability of a large step in primary sample space (`pLarge`; 0.3).
+    pub large_step: f64,
+    /// Number of chains (`chains`, or Mitsuba's `workUnits` if positive; 16).
+    pub chains: u32,
+    /// Samples per pixel of a separate direct-lighting pass, whose paths
+    /// the chains then leave out (`directSamples`; −1 or 0: none).
+    pub direct_samples: u32,
+    /// Relative frequencies of Veach's mutations: bidirectional, lens,
+    /// caustic and multi-chain (`bidirectionalMutation`,
+    /// `lensPerturbation`, `causticPerturbation`, `multiChainPerturbation`:
+    /// true for 1, false for 0).
+    pub mutations: [f64; 4],
+}
+
+impl Default for MetropolisSettings {
+    fn default() -> Self {
+        MetropolisSettings {
+            luminance_samples: 100_000,
+            large_step: 0.3,
+            chains: 16,
+            direct_samples: 0,
+            mutations: [1.0; 4],
+        }
+    }
 }
 
 impl Default for IntegratorSettings {
@@ -252,6 +288,7 @@ impl Default for IntegratorSettings {
             max_depth: -1,
             rr_depth: 5,
             gradient: GradientSettings::default(),
+            metropolis: MetropolisSettings::default(),
         }
     }
 }
@@ -984,6 +1021,8 @@ fn integrator(o: &Object) -> Result<IntegratorSettings, SceneError> {
         "bdpt" | "bidir" | "mybidir" => "bdpt",
         "mytridir" => "tridir",
         "mlt" | "mymlt" => "mlt",
+        "pssmlt" => "pssmlt",
+        "mmlt" => "mmlt",
         "mygpt" | "gpt" => "gpt",
         "ptracer" | "myptracer" => "light",
         other => return Err(o.error(format!("the integrator '{other}' is not known"))),
@@ -1009,8 +1048,10 @@ fn integrator(o: &Object) -> Result<IntegratorSettings, SceneError> {
     if !(alpha > 0.0 && alpha.is_finite()) {
         return Err(o.error(format!("reconstructAlpha must be positive, not {alpha}")));
     }
+    let metropolis = metropolis(o)?;
     Ok(IntegratorSettings {
         name: name.to_string(),
+        metropolis,
         max_depth: o.integer("maxDepth", -1)?,
         rr_depth: o.integer("rrDepth", 5)?,
         gradient: GradientSettings {
@@ -1018,5 +1059,50 @@ fn integrator(o: &Object) -> Result<IntegratorSettings, SceneError> {
             l1: o.boolean(&either("doL1Reconstruction", "reconstructL1"), defaults.l1)?,
             alpha: alpha as f32,
         },
+    })
+}
+
+fn metropolis(o: &Object) -> Result<MetropolisSettings, SceneError> {
+    let d = MetropolisSettings::default();
+    let positive = |name: &str, default: u32| -> Result<u32, SceneError> {
+        let n = o.integer(name, i64::from(default))?;
+        u32::try_from(n)
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(|| o.error(format!("{name} must be a positive integer, not {n}")))
+    };
+    let large_step = o.float("pLarge", d.large_step)?;
+    if !(0.0..=1.0).contains(&large_step) {
+        return Err(o.error(format!("pLarge must lie in [0, 1], not {large_step}")));
+    }
+    let work_units = o.integer("workUnits", -1)?;
+    let chains = if o.property("chains").is_some() || work_units <= 0 {
+        positive("chains", d.chains)?
+    } else {
+        positive("workUnits", d.chains)?
+    };
+    let direct = o.integer("directSamples", -1)?;
+    let direct_samples = u32::try_from(direct.max(0))
+        .map_err(|_| o.error(format!("directSamples is too large: {direct}")))?;
+    let mut mutations = d.mutations;
+    for (w, name) in mutations.iter_mut().zip([
+        "bidirectionalMutation",
+        "lensPerturbation",
+        "causticPerturbation",
+        "multiChainPerturbation",
+    ]) {
+        *w = if o.boolean(name, true)? { 1.0 } else { 0.0 };
+    }
+    if mutations[0] == 0.0 {
+        return Err(o.error(
+            "bidirectionalMutation cannot be off: the perturbations alone keep a path's length and light vertex, so the chain would not reach every path".to_string(),
+        ));
+    }
+    Ok(MetropolisSettings {
+        luminance_samples: positive("luminanceSamples", d.luminance_samples)?,
+        large_step,
+        chains,
+        direct_samples,
+        mutations,
     })
 }

@@ -1,0 +1,338 @@
+//! Metropolis light transport: Veach's path-space MLT ([`veach`]),
+//! primary-sample-space MLT (Kelemen et al. 2002) and multiplexed MLT
+//! (Hachisuka et al. 2014) on this project's BDPT ([`primary`]).
+//!
+//! All three run the same loop. A state contributes g to the image (a list
+//! of pixels and colours); the chain's target is its luminance F = Y(Σ g).
+//! The normalisation b = ∫F comes from independent bootstrap samples, which
+//! also seed the chains (resampled in proportion to F, so that the chains
+//! start near their stationary distribution). Each mutation proposes a
+//! state and the acceptance probability a; both the current and the
+//! proposed state are splatted with their expected weights (1 − a and a),
+//! scaled by b / F. Multiplexed MLT keeps one state per path length
+//! ("class") and picks the class of each mutation in proportion to its b,
+//! so every mutation has the same weight b / M in the image.
+//!
+//! A fixed number of chains run in parallel with rayon, each from its own
+//! random stream, so that an image depends on the seed and not on the
+//! threads.
+
+pub mod primary;
+pub mod veach;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use aether_core::{Pcg32, UniformSource};
+use aether_strategies::geometry::rays_cast;
+use aether_strategies::scene::Scene;
+use aether_strategies::spectrum::luminance;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::estimator::Splats;
+use crate::film::Film;
+use crate::render::{Rendered, Settings};
+
+/// Mutations between looks at the clock and the stop flag.
+const CHECK_EVERY: u64 = 256;
+
+/// Longest path, in vertices, for scenes that set no maximum depth: MLT
+/// needs a finite set of lengths. Paths of 32 vertices carry a negligible
+/// share of light in any scene with albedos below 0.9.
+pub const UNLIMITED_VERTICES: usize = 32;
+
+/// Which Metropolis method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variant {
+    /// Veach's path-space MLT: bidirectional mutation and lens, caustic and
+    /// multi-chain perturbations (`mlt`).
+    Veach,
+    /// Kelemen's primary-sample-space MLT over all of BDPT (`pssmlt`).
+    Primary,
+    /// Multiplexed MLT: primary sample space over one BDPT technique at a
+    /// time, the technique part of the state (`mmlt`).
+    Multiplexed,
+}
+
+impl Variant {
+    /// The variant an integrator name asks for (`mlt`, `pssmlt`, `mmlt`).
+    #[must_use]
+    pub fn named(name: &str) -> Option<Variant> {
+        match name {
+            "mlt" => Some(Variant::Veach),
+            "pssmlt" => Some(Variant::Primary),
+            "mmlt" => Some(Variant::Multiplexed),
+            _ => None,
+        }
+    }
+}
+
+/// The chains' parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MltSettings {
+    /// The method.
+    pub variant: Variant,
+    /// Probability of a large step (primary sample space).
+    pub large_step: f64,
+    /// Independent chains (fixed, so that an image depends on the seed and
+    /// not on the threads).
+    pub chains: usize,
+    /// Independent samples that estimate the normalisation and seed the chains.
+    pub bootstrap: usize,
+    /// Relative frequencies of Veach's bidirectional, lens, caustic and
+    /// multi-chain mutations.
+    pub mutations: [f64; 4],
+    /// Samples per pixel of a separate direct-lighting pass (Veach's MLT;
+    /// 0: none): the chains then leave out paths of up to two edges.
+    pub direct_samples: u32,
+}
+
+impl Default for MltSettings {
+    fn default() -> Self {
+        MltSettings {
+            variant: Variant::Primary,
+            large_step: 0.3,
+            chains: 16,
+            bootstrap: 100_000,
+            mutations: [1.0; 4],
+            direct_samples: 0,
+        }
+    }
+}
+
+impl MltSettings {
+    /// The settings `scene`'s integrator asks for (its name picks the
+    /// variant; PSSMLT for integrators that are not Metropolis methods).
+    #[must_use]
+    pub fn for_scene(scene: &Scene) -> Self {
+        let m = &scene.integrator.metropolis;
+        MltSettings {
+            variant: Variant::named(&scene.integrator.name).unwrap_or(Variant::Primary),
+            large_step: m.large_step,
+            chains: m.chains as usize,
+            bootstrap: m.luminance_samples as usize,
+            mutations: m.mutations,
+            direct_samples: m.direct_samples,
+        }
+    }
+}
+
+/// A Markov chain over some state space, as the loop in [`run_chains`]
+/// drives it.
+pub(crate) trait Sampler: Sync {
+    /// A state: a point of the space with its contributions and F.
+    type State: Default + Send;
+
+    /// Classes of states with chains of their own (path lengths for
+    /// multiplexed MLT), each with its own normalisation.
+    fn classes(&self) -> usize {
+        1
+    }
+
+    /// F of an independent sample of `class` drawn from `stream` (summed
+    /// over the sample's candidates).
+    fn bootstrap(&self, class: usize, stream: &mut Pcg32) -> f64;
+
+    /// Redraws the sample of `class` from `stream` and puts into `state`
+    /// one of its candidates, picked with `rng` in proportion to F.
+    fn start(&self, class: usize, stream: &mut Pcg32, rng: &mut Pcg32, state: &mut Self::State);
+
+    /// Proposes a move from `current` into `proposal` and returns the
+    /// acceptance probability (0 if the proposal failed).
+    fn mutate(&self, current: &Self::State, proposal: &mut Self::State, rng: &mut Pcg32) -> f64;
+
+    /// What `state` contributes, and its F.
+    fn contributions<'a>(&self, state: &'a Self::State) -> (&'a Splats, f64);
+}
+
+/// F of a list of contributions: the sum of their luminances, zero if
+/// that is not a finite non-negative number.
+pub(crate) fn target(contributions: &Splats) -> f64 {
+    let f: f64 = contributions
+        .iter()
+        .map(|(_, c)| luminance(c.to_array()))
+        .sum();
+    if f.is_finite() && f > 0.0 { f } else { 0.0 }
+}
+
+/// Renders `scene` with the Metropolis method of `mlt.variant`, with
+/// `settings.spp` mutations per pixel of the crop window in `mlt.chains`
+/// chains run in parallel; deterministic for a seed. The time limit and
+/// `stop` end the chains early, and the image is normalised by the
+/// mutations made.
+///
+/// # Errors
+/// If BDPT cannot be built, the scene is black (no bootstrap sample
+/// carries light), or the worker threads cannot start.
+pub fn render_mlt(
+    scene: &Scene,
+    mlt: MltSettings,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<Rendered, String> {
+    let p = mlt.large_step;
+    match mlt.variant {
+        Variant::Primary => {
+            let sampler = primary::Pssmlt::new(scene)?.with_large_step(p);
+            run_chains(&sampler, scene, &mlt, settings, stop)
+        }
+        Variant::Multiplexed => {
+            let sampler = primary::Mmlt::new(scene)?.with_large_step(p);
+            run_chains(&sampler, scene, &mlt, settings, stop)
+        }
+        Variant::Veach => veach::render(scene, &mlt, settings, stop),
+    }
+}
+
+/// The Metropolis loop shared by every variant (see the module documentation).
+pub(crate) fn run_chains<S: Sampler>(
+    sampler: &S,
+    scene: &Scene,
+    mlt: &MltSettings,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<Rendered, String> {
+    let start = Instant::now();
+    let (w, h) = (scene.film.width, scene.film.height);
+    let [cx, cy, cw, ch] = scene.film.crop;
+    let pool = settings.pool()?;
+    let chains = mlt.chains.max(1);
+    let total = u64::from(settings.spp) * u64::from(cw) * u64::from(ch);
+    let per_chain = total.div_ceil(chains as u64);
+    let bar = if settings.progress {
+        ProgressBar::new(per_chain * chains as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
+            .expect("valid template"),
+    );
+    let out_of_time = || {
+        stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
+    };
+    let seed = settings.seed;
+    let classes = sampler.classes().max(1);
+    let (image, mutations, samples, rays) = pool.install(|| -> Result<_, String> {
+        // Bootstrap: sample i belongs to class i mod classes, on stream i.
+        let bootstrap = mlt.bootstrap.max(classes);
+        let fs: Vec<f64> = (0..bootstrap as u64)
+            .into_par_iter()
+            .map(|i| sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i)))
+            .collect();
+        // Per class: its samples' running sums (to pick seeds) and b.
+        let mut cumulative = vec![Vec::new(); classes];
+        let mut b = vec![0.0; classes];
+        for (i, f) in fs.iter().enumerate() {
+            let c = i % classes;
+            b[c] += f;
+            let last = cumulative[c].last().copied().unwrap_or(0.0);
+            cumulative[c].push(last + f);
+        }
+        for (c, sum) in b.iter_mut().enumerate() {
+            *sum /= cumulative[c].len().max(1) as f64;
+        }
+        let b_total: f64 = b.iter().sum();
+        if !(b_total > 0.0 && b_total.is_finite()) {
+            return Err("no bootstrap sample carries light: the image is black".to_string());
+        }
+        let results: Vec<(Vec<[f64; 3]>, u64, u64)> = (0..chains as u64)
+            .into_par_iter()
+            .map(|k| {
+                let rays_before = rays_cast();
+                let mut rng = Pcg32::new(seed ^ 0x6d6c_745f_6368_6169, k);
+                // Each class starts at a bootstrap sample picked in proportion to F.
+                let mut current: Vec<S::State> = (0..classes)
+                    .map(|c| {
+                        let mut state = S::State::default();
+                        let sums = &cumulative[c];
+                        if let Some(&sum) = sums.last().filter(|&&s| s > 0.0) {
+                            let target = f64::from(rng.next_f32()) * sum;
+                            let j = sums.partition_point(|&s| s <= target).min(sums.len() - 1);
+                            let i = (j * classes + c) as u64;
+                            sampler.start(c, &mut Pcg32::new(seed, i), &mut rng, &mut state);
+                        }
+                        state
+                    })
+                    .collect();
+                let mut proposal = S::State::default();
+                let mut image = vec![[0.0f64; 3]; w as usize * h as usize];
+                let mut splat = |state: &S::State, weight: f64| {
+                    let (contributions, f) = sampler.contributions(state);
+                    if weight > 0.0 && f > 0.0 {
+                        let scale = weight / f;
+                        for ([x, y], c) in contributions {
+                            let p = &mut image[(y * w + x) as usize];
+                            for (a, v) in p.iter_mut().zip(c.to_array()) {
+                                *a += scale * f64::from(v);
+                            }
+                        }
+                    }
+                };
+                let mut done = 0u64;
+                while done < per_chain {
+                    if done % CHECK_EVERY == 0 {
+                        if out_of_time() {
+                            break;
+                        }
+                        bar.inc(CHECK_EVERY.min(per_chain - done));
+                    }
+                    let c = if classes == 1 {
+                        0
+                    } else {
+                        pick(&b, f64::from(rng.next_f32()) * b_total)
+                    };
+                    let a = sampler.mutate(&current[c], &mut proposal, &mut rng);
+                    splat(&current[c], 1.0 - a);
+                    splat(&proposal, a);
+                    if f64::from(rng.next_f32()) < a {
+                        std::mem::swap(&mut current[c], &mut proposal);
+                    }
+                    done += 1;
+                }
+                (image, done, rays_cast() - rays_before)
+            })
+            .collect();
+        let mutations: u64 = results.iter().map(|r| r.1).sum();
+        let rays: u64 = results.iter().map(|r| r.2).sum();
+        let mut image = vec![[0.0f64; 3]; w as usize * h as usize];
+        for (chain, _, _) in &results {
+            for (a, c) in image.iter_mut().zip(chain) {
+                for k in 0..3 {
+                    a[k] += c[k];
+                }
+            }
+        }
+        let scale = b_total / mutations.max(1) as f64;
+        for a in &mut image {
+            *a = a.map(|v| v * scale);
+        }
+        Ok((image, mutations, bootstrap as u64 + mutations, rays))
+    })?;
+    bar.finish_and_clear();
+    let in_crop = |i: usize| {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
+    };
+    let film = Film::from_image(w, h, &image, in_crop);
+    Ok(Rendered {
+        film,
+        seconds: start.elapsed().as_secs_f64(),
+        samples,
+        rays,
+        ray_seconds: 0.0,
+        complete: mutations >= total,
+    })
+}
+
+/// The index whose share of `weights` holds `target` (in [0, Σ weights)).
+fn pick(weights: &[f64], mut target: f64) -> usize {
+    for (i, &w) in weights.iter().enumerate() {
+        if target < w {
+            return i;
+        }
+        target -= w;
+    }
+    weights.iter().rposition(|&w| w > 0.0).unwrap_or(0)
+}

@@ -1,0 +1,275 @@
+//! Veach's path-space Metropolis light transport (Veach and Guibas 1997).
+//!
+//! The state is a path; it moves by Veach's mutations
+//! ([`aether_strategies::mutations::Mutations`]), and the acceptance uses
+//! T(y | x) and T(x | y) that the language derives from the mutations' own
+//! sampling code. The chains start from paths a BDPT pass found, picked in
+//! proportion to their MIS-weighted contribution; the same pass estimates
+//! the normalisation. Optionally, direct lighting (paths of one and two
+//! edges) is rendered separately, as Veach did, and left out of the chains.
+
+use std::sync::atomic::AtomicBool;
+
+use aether_core::{ChainPath, Pcg32, UniformSource, acceptance, propose, transition_density};
+use aether_strategies::camera::Camera;
+use aether_strategies::integrand::Integrand;
+use aether_strategies::lights::Lights;
+use aether_strategies::mutations::{MutationSettings, Mutations};
+use aether_strategies::scene::Scene;
+use aether_strategies::spectrum::luminance;
+use aether_strategies::vertex::SceneVertex;
+use glam::DVec3;
+use smallvec::SmallVec;
+
+use super::{MltSettings, Sampler, UNLIMITED_VERTICES, run_chains, target};
+use crate::bdpt::{Bdpt, SeedPath};
+use crate::direct::DirectLighting;
+use crate::estimator::Splats;
+use crate::film::Film;
+use crate::render::{Rendered, Settings, render_with};
+
+thread_local! {
+    /// The paths of one BDPT seed sample, reused.
+    static SEEDS: std::cell::RefCell<(Vec<SeedPath>, Splats)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
+/// A path with what it contributes to the image and its luminance F.
+#[derive(Clone, Debug, Default)]
+pub struct State {
+    path: ChainPath<SceneVertex>,
+    contributions: Splats,
+    f: f64,
+}
+
+/// Veach's MLT on a scene.
+#[derive(Debug)]
+pub struct VeachMlt<'s> {
+    scene: &'s Scene,
+    camera: Camera,
+    lights: Lights<'s>,
+    bdpt: Bdpt<'s>,
+    settings: MutationSettings,
+    /// Paths of at most this many vertices are rendered by a separate
+    /// direct-lighting pass (0: none).
+    direct_vertices: usize,
+}
+
+impl<'s> VeachMlt<'s> {
+    /// Veach's MLT of `scene` with the mutation mix of `mlt`.
+    ///
+    /// # Errors
+    /// If the scene has no light, or the camera or BDPT cannot be built.
+    pub fn new(scene: &'s Scene, mlt: &MltSettings) -> Result<Self, String> {
+        let lights = Lights::new(scene).ok_or("Metropolis light transport needs a light")?;
+        let bdpt = Bdpt::new(scene)?;
+        let max = bdpt.max_vertices().min(UNLIMITED_VERTICES);
+        let mut settings = MutationSettings::new(scene.film.width, scene.film.height, max);
+        [
+            settings.bidirectional,
+            settings.lens,
+            settings.caustic,
+            settings.multi_chain,
+        ] = mlt.mutations;
+        settings.roughness_threshold = scene.integrator.gradient.roughness_threshold;
+        Ok(VeachMlt {
+            scene,
+            camera: Camera::new(scene)?,
+            lights,
+            bdpt,
+            settings,
+            direct_vertices: if mlt.direct_samples > 0 { 3 } else { 0 },
+        })
+    }
+
+    /// The mutations, borrowing this sampler's camera and lights.
+    #[must_use]
+    pub fn mutations(&self) -> Mutations<'_, 's> {
+        Mutations::new(self.scene, &self.camera, &self.lights, self.settings)
+    }
+
+    /// The contributions and F of `state.path`. Edges copied from `from`
+    /// keep their visibility; every other edge is tested.
+    fn evaluate(&self, state: &mut State, from: Option<&ChainPath<SceneVertex>>) {
+        state.contributions.clear();
+        state.f = 0.0;
+        let v = state.path.vertices();
+        let n = v.len();
+        if n < 2 || n <= self.direct_vertices || n > self.settings.max_vertices {
+            return;
+        }
+        let connections: SmallVec<[usize; 12]> = (0..n - 1)
+            .filter(|&i| from.is_none_or(|x| !state.path.edge_copied_from(i, x)))
+            .collect();
+        let f = Integrand::new(self.scene, &self.camera, &self.lights);
+        let through = f.throughput(v, &connections);
+        let Some(d) = v[0].direction_to(&v[1]).filter(|_| through != DVec3::ZERO) else {
+            return;
+        };
+        for j in self.camera.pixels_toward(&v[0], d) {
+            let c = through * self.camera.importance(j, &v[0], d);
+            if c.is_finite() && c != DVec3::ZERO {
+                state.contributions.push((j, c.as_vec3()));
+            }
+        }
+        state.f = target(&state.contributions);
+    }
+
+    /// The chain's target F of `path`: the luminance of its contributions
+    /// to every pixel. Edges copied from `from` are taken as visible.
+    #[must_use]
+    pub fn target(
+        &self,
+        path: &ChainPath<SceneVertex>,
+        from: Option<&ChainPath<SceneVertex>>,
+    ) -> f64 {
+        let mut state = State {
+            path: path.clone(),
+            ..State::default()
+        };
+        self.evaluate(&mut state, from);
+        state.f
+    }
+
+    /// The paths one BDPT sample drawn from `stream` finds, with F > 0:
+    /// the candidates the chains start from.
+    pub fn seed_paths(&self, stream: &mut Pcg32) -> Vec<ChainPath<SceneVertex>> {
+        let seeds = self.seed_sample(stream, |seeds| {
+            seeds
+                .iter()
+                .filter(|s| self.seed_weight(s) > 0.0)
+                .map(|s| ChainPath::new(s.vertices.iter().copied()))
+                .collect::<Vec<_>>()
+        });
+        seeds
+            .into_iter()
+            .filter(|p| self.target(p, None) > 0.0)
+            .collect()
+    }
+
+    /// The share of F a BDPT seed path carries: its weighted contribution,
+    /// counted once per pixel for paths of the sample's own pixel (picked
+    /// with probability one over their number).
+    fn seed_weight(&self, seed: &SeedPath) -> f64 {
+        if seed.vertices.len() <= self.direct_vertices {
+            return 0.0;
+        }
+        let [_, _, cw, ch] = self.scene.film.crop;
+        let pixels = if seed.splat {
+            1.0
+        } else {
+            f64::from(cw) * f64::from(ch)
+        };
+        let y = luminance(seed.weighted.as_vec3().to_array()) * pixels;
+        if y.is_finite() && y > 0.0 { y } else { 0.0 }
+    }
+
+    /// Runs one BDPT sample from `stream` at a pixel it picks, and hands
+    /// its paths to `use_seeds`.
+    fn seed_sample<T>(&self, stream: &mut Pcg32, use_seeds: impl FnOnce(&[SeedPath]) -> T) -> T {
+        let [cx, cy, cw, ch] = self.scene.film.crop;
+        let pick = |u: f32, n: u32| ((u * n as f32) as u32).min(n - 1);
+        let pixel = [
+            cx + pick(stream.next_f32(), cw),
+            cy + pick(stream.next_f32(), ch),
+        ];
+        SEEDS.with_borrow_mut(|(seeds, splats)| {
+            seeds.clear();
+            splats.clear();
+            self.bdpt.sample_seeds(pixel, stream, splats, seeds);
+            use_seeds(seeds)
+        })
+    }
+}
+
+impl Sampler for VeachMlt<'_> {
+    type State = State;
+
+    fn bootstrap(&self, _class: usize, stream: &mut Pcg32) -> f64 {
+        self.seed_sample(stream, |seeds| {
+            seeds.iter().map(|s| self.seed_weight(s)).sum()
+        })
+    }
+
+    fn start(&self, _class: usize, stream: &mut Pcg32, rng: &mut Pcg32, state: &mut State) {
+        let path = self.seed_sample(stream, |seeds| {
+            let total: f64 = seeds.iter().map(|s| self.seed_weight(s)).sum();
+            let mut target = f64::from(rng.next_f32()) * total;
+            let chosen = seeds.iter().find(|s| {
+                let w = self.seed_weight(s);
+                let hit = w > 0.0 && target < w;
+                target -= w;
+                hit
+            });
+            chosen
+                .or_else(|| seeds.iter().rfind(|s| self.seed_weight(s) > 0.0))
+                .map(|s| ChainPath::new(s.vertices.iter().copied()))
+        });
+        state.path = path.unwrap_or_default();
+        self.evaluate(state, None);
+    }
+
+    fn mutate(&self, current: &State, proposal: &mut State, rng: &mut Pcg32) -> f64 {
+        let mutations = self.mutations();
+        let Some((y, _)) = propose(&mutations, &current.path, rng) else {
+            proposal.contributions.clear();
+            proposal.f = 0.0;
+            return 0.0;
+        };
+        proposal.path = y;
+        self.evaluate(proposal, Some(&current.path));
+        if proposal.f == 0.0 {
+            return 0.0;
+        }
+        let forward = transition_density(&mutations, &current.path, &proposal.path);
+        let backward = transition_density(&mutations, &proposal.path, &current.path);
+        acceptance(current.f, proposal.f, forward, backward)
+    }
+
+    fn contributions<'a>(&self, state: &'a State) -> (&'a Splats, f64) {
+        (&state.contributions, state.f)
+    }
+}
+
+/// Renders `scene` by Veach's MLT, plus the separate direct-lighting pass
+/// if `mlt` asks for one.
+pub(crate) fn render(
+    scene: &Scene,
+    mlt: &MltSettings,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<Rendered, String> {
+    let sampler = VeachMlt::new(scene, mlt)?;
+    let chains = run_chains(&sampler, scene, mlt, settings, stop)?;
+    if mlt.direct_samples == 0 {
+        return Ok(chains);
+    }
+    let direct = DirectLighting::new(scene)?;
+    let pass = Settings {
+        spp: mlt.direct_samples,
+        progress: false,
+        ..settings.clone()
+    };
+    let lit = render_with(scene, &direct, &pass, stop)?;
+    let (w, h) = (scene.film.width, scene.film.height);
+    let image: Vec<[f64; 3]> = chains
+        .film
+        .image()
+        .iter()
+        .zip(lit.film.image())
+        .map(|(a, b)| [0, 1, 2].map(|k| f64::from(a[k]) + f64::from(b[k])))
+        .collect();
+    let [cx, cy, cw, ch] = scene.film.crop;
+    let in_crop = |i: usize| {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
+    };
+    Ok(Rendered {
+        film: Film::from_image(w, h, &image, in_crop),
+        seconds: chains.seconds + lit.seconds,
+        samples: chains.samples + lit.samples,
+        rays: chains.rays + lit.rays,
+        ray_seconds: 0.0,
+        complete: chains.complete && lit.complete,
+    })
+}
