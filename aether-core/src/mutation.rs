@@ -135,11 +135,16 @@ enum Mode<'m, V> {
 }
 
 /// What mutation code samples with: the sampling or the density context.
+///
+/// In sampling mode it holds the proposal's two sides. In density mode the
+/// sides are prefixes and suffixes of y, so it keeps only their lengths.
 pub struct Mutator<'m, V> {
     mode: Mode<'m, V>,
+    /// Sampling mode: the eye side, and the light side in light-to-camera order.
     eye: ChainPath<V>,
-    /// The light side in light-to-camera order.
     light: ChainPath<V>,
+    eye_len: usize,
+    light_len: usize,
     density: PathDensity,
     /// Density mode: the branch of each discrete choice, and its count.
     choices: SmallVec<[(usize, usize); 8]>,
@@ -155,10 +160,30 @@ impl<V> std::fmt::Debug for Mutator<'_, V> {
         };
         f.debug_struct("Mutator")
             .field("mode", &mode)
-            .field("eye", &self.eye.vertices.len())
-            .field("light", &self.light.vertices.len())
+            .field("eye", &self.eye_len)
+            .field("light", &self.light_len)
             .finish_non_exhaustive()
     }
+}
+
+/// The index `u · Σ weights` falls in (only positive weights count).
+fn pick(weights: &[f64], total: f64, u: f32) -> Option<usize> {
+    let mut u = f64::from(u) * total;
+    let last = weights.iter().rposition(|w| *w > 0.0)?;
+    for (k, &w) in weights.iter().enumerate().take(last) {
+        if w > 0.0 {
+            if u < w {
+                return Some(k);
+            }
+            u -= w;
+        }
+    }
+    Some(last)
+}
+
+fn positive_total(weights: &[f64]) -> Option<f64> {
+    let total: f64 = weights.iter().filter(|w| **w > 0.0).sum();
+    (total > 0.0 && total.is_finite()).then_some(total)
 }
 
 impl<'m, V: Vertex> Mutator<'m, V> {
@@ -167,6 +192,8 @@ impl<'m, V: Vertex> Mutator<'m, V> {
             mode,
             eye: ChainPath::default(),
             light: ChainPath::default(),
+            eye_len: 0,
+            light_len: 0,
             density: PathDensity::ONE,
             choices: SmallVec::new(),
             depth: 0,
@@ -174,29 +201,22 @@ impl<'m, V: Vertex> Mutator<'m, V> {
         }
     }
 
+    /// Multiplies in the probability of alternative `k`; `None` if it has none.
+    fn chosen(&mut self, weights: &[f64], total: f64, k: usize) -> Option<usize> {
+        let w = *weights.get(k)?;
+        if w.is_nan() || w <= 0.0 {
+            return None;
+        }
+        self.density = self.density.times(Density::discrete(w / total));
+        Some(k)
+    }
+
     /// Picks one of `weights.len()` alternatives with probability
     /// proportional to its weight; `None` if all weights are zero.
     pub fn choose(&mut self, weights: &[f64]) -> Option<usize> {
-        let total: f64 = weights.iter().filter(|w| **w > 0.0).sum();
-        if !(total > 0.0 && total.is_finite()) {
-            return None;
-        }
+        let total = positive_total(weights)?;
         let k = match &mut self.mode {
-            Mode::Sample(rng) => {
-                let mut u = f64::from(rng.next_f32()) * total;
-                let last = weights.iter().rposition(|w| *w > 0.0)?;
-                let mut pick = last;
-                for (k, &w) in weights.iter().enumerate().take(last) {
-                    if w > 0.0 {
-                        if u < w {
-                            pick = k;
-                            break;
-                        }
-                        u -= w;
-                    }
-                }
-                pick
-            }
+            Mode::Sample(rng) => pick(weights, total, rng.next_f32())?,
             Mode::Density { .. } => {
                 if self.depth == self.choices.len() {
                     self.choices.push((0, weights.len()));
@@ -207,18 +227,53 @@ impl<'m, V: Vertex> Mutator<'m, V> {
                 k
             }
         };
-        let w = weights[k];
-        if w.is_nan() || w <= 0.0 {
-            return None;
-        }
-        self.density = self.density.times(Density::discrete(w / total));
-        Some(k)
+        self.chosen(weights, total, k)
     }
 
     /// One of `n` alternatives, uniformly; `None` if `n` is zero.
     pub fn choose_uniform(&mut self, n: usize) -> Option<usize> {
         let weights: SmallVec<[f64; 16]> = (0..n).map(|_| 1.0).collect();
         self.choose(&weights)
+    }
+
+    /// Picks the proposal's number of vertices, with probability
+    /// proportional to `weights[n]`: [`choose`](Self::choose) followed by
+    /// [`expect_len`](Self::expect_len). Density mode reads the choice off
+    /// y's length instead of trying every branch (the others would fail).
+    pub fn choose_length(&mut self, weights: &[f64]) -> Option<usize> {
+        let total = positive_total(weights)?;
+        let n = match &mut self.mode {
+            Mode::Sample(rng) => pick(weights, total, rng.next_f32())?,
+            Mode::Density { target, .. } => target.len(),
+        };
+        self.chosen(weights, total, n)?;
+        self.expect_len(n)?;
+        Some(n)
+    }
+
+    /// Starts the eye side with x's first `e` vertices, `e` chosen with
+    /// probability proportional to `weights[e]`: [`choose`](Self::choose)
+    /// followed by [`copy_eye`](Self::copy_eye). Density mode reads `e` off
+    /// y as the number of leading vertices it shares with x: a shorter copy
+    /// would have to sample one of them, a longer one copy a vertex y does
+    /// not have, and both branches fail.
+    pub fn copy_eye_prefix(&mut self, x: &ChainPath<V>, weights: &[f64]) -> Option<usize> {
+        if self.eye_len > 0 {
+            return None;
+        }
+        let total = positive_total(weights)?;
+        let e = match &mut self.mode {
+            Mode::Sample(rng) => pick(weights, total, rng.next_f32())?,
+            Mode::Density { target, .. } => target
+                .ids
+                .iter()
+                .zip(&x.ids)
+                .take_while(|(a, b)| a == b)
+                .count(),
+        };
+        self.chosen(weights, total, e)?;
+        self.copy(x, 0..e, false)?;
+        Some(e)
     }
 
     /// Fails the branch unless `condition` holds (in density mode the
@@ -241,58 +296,83 @@ impl<'m, V: Vertex> Mutator<'m, V> {
     /// The eye side so far: the proposal's first vertices.
     #[must_use]
     pub fn eye_side(&self) -> &[V] {
-        &self.eye.vertices
+        match self.mode {
+            Mode::Sample(_) => &self.eye.vertices,
+            Mode::Density { target, .. } => &target.vertices[..self.eye_len],
+        }
     }
 
-    /// The light side so far, from the light: the proposal's last vertices
-    /// in reverse order.
+    /// The number of vertices on the light side so far.
     #[must_use]
-    pub fn light_side(&self) -> &[V] {
-        &self.light.vertices
+    pub fn light_len(&self) -> usize {
+        self.light_len
+    }
+
+    /// The `j`-th vertex of the light side, counted from the light (0 is
+    /// the proposal's last vertex).
+    ///
+    /// # Panics
+    /// If the light side has no `j`-th vertex.
+    #[must_use]
+    pub fn light_vertex(&self, j: usize) -> &V {
+        assert!(
+            j < self.light_len,
+            "the light side has {} vertices",
+            self.light_len
+        );
+        match self.mode {
+            Mode::Sample(_) => &self.light.vertices[j],
+            Mode::Density { target, .. } => &target.vertices[target.len() - 1 - j],
+        }
     }
 
     /// Where the next vertex of the eye or the light side goes in y, if y
     /// has room for it (density mode only).
-    fn target_slot(&self, light: bool) -> Option<usize> {
-        let Mode::Density { target, .. } = self.mode else {
-            return None;
-        };
-        let used = self.eye.len() + self.light.len();
-        if used >= target.len() {
+    fn target_slot(&self, target: &ChainPath<V>, light: bool) -> Option<usize> {
+        if self.eye_len + self.light_len >= target.len() {
             return None;
         }
         Some(if light {
-            target.len() - 1 - self.light.len()
+            target.len() - 1 - self.light_len
         } else {
-            self.eye.len()
+            self.eye_len
         })
     }
 
-    fn push(&mut self, light: bool, v: V, id: u64) {
-        let side = if light {
-            &mut self.light
+    /// Adds a vertex to a side (kept only in sampling mode).
+    fn push(&mut self, light: bool, v: Option<(V, u64)>) {
+        let (side, len) = if light {
+            (&mut self.light, &mut self.light_len)
         } else {
-            &mut self.eye
+            (&mut self.eye, &mut self.eye_len)
         };
-        side.vertices.push(v);
-        side.ids.push(id);
+        *len += 1;
+        if let Some((v, id)) = v {
+            side.vertices.push(v);
+            side.ids.push(id);
+        }
     }
 
     fn copy(&mut self, x: &ChainPath<V>, range: Range<usize>, light: bool) -> Option<()> {
-        let indices: SmallVec<[usize; INLINE_VERTICES]> = if light {
-            range.rev().collect()
-        } else {
-            range.collect()
-        };
-        for k in indices {
-            let (v, id) = (x.vertices.get(k)?.clone(), x.ids[k]);
-            if let Mode::Density { target, .. } = self.mode {
-                let slot = self.target_slot(light)?;
-                if target.ids[slot] != id {
-                    return None;
+        if range.end > x.len() {
+            return None;
+        }
+        for i in 0..range.len() {
+            let k = if light {
+                range.end - 1 - i
+            } else {
+                range.start + i
+            };
+            match self.mode {
+                Mode::Density { target, .. } => {
+                    let slot = self.target_slot(target, light)?;
+                    if target.ids[slot] != x.ids[k] {
+                        return None;
+                    }
+                    self.push(light, None);
                 }
+                Mode::Sample(_) => self.push(light, Some((x.vertices[k].clone(), x.ids[k]))),
             }
-            self.push(light, v, id);
         }
         Some(())
     }
@@ -320,14 +400,13 @@ impl<'m, V: Vertex> Mutator<'m, V> {
                 }
                 self.density = self.density.times(density);
                 let v = out.pop()?;
-                self.push(light, v, fresh_id());
+                self.push(light, Some((v, fresh_id())));
             }
             Mode::Density { target, source } => {
                 let (target, source) = (*target, *source);
-                let slot = self.target_slot(light)?;
-                let id = target.ids[slot];
+                let slot = self.target_slot(target, light)?;
                 // A vertex y shares with x is a copy, never a sample.
-                if source.ids.contains(&id) {
+                if source.ids.contains(&target.ids[slot]) {
                     return None;
                 }
                 let prefix = if light {
@@ -335,13 +414,12 @@ impl<'m, V: Vertex> Mutator<'m, V> {
                 } else {
                     Prefix::forward(&target.vertices[..slot])
                 };
-                let v = &target.vertices[slot];
-                let d = strategy.density_of(prefix, v);
+                let d = strategy.density_of(prefix, &target.vertices[slot]);
                 if d.is_zero() {
                     return None;
                 }
                 self.density = self.density.times(d);
-                self.push(light, v.clone(), id);
+                self.push(light, None);
             }
         }
         Some(())
@@ -363,8 +441,8 @@ impl<'m, V: Vertex> Mutator<'m, V> {
     /// Resets the sides for the next branch, and moves the odometer on:
     /// false once every branch has run.
     fn next_branch(&mut self) -> bool {
-        self.eye = ChainPath::default();
-        self.light = ChainPath::default();
+        self.eye_len = 0;
+        self.light_len = 0;
         self.density = PathDensity::ONE;
         self.length = None;
         // Choices past the last one this branch reached belong to no branch.
@@ -422,7 +500,7 @@ pub fn transition_density<V: Vertex>(
     });
     loop {
         let done = mutation.propose(x, &mut m);
-        let complete = m.eye.len() + m.light.len() == y.len();
+        let complete = m.eye_len + m.light_len == y.len();
         if done.is_some() && complete && m.length.is_none_or(|n| n == y.len()) {
             total = total.plus(m.density);
         }

@@ -14,13 +14,14 @@ use aether_core::{
     ChainPath, Distribution, Frame, InFrame, Intersect, Mutation, Mutator, Prefix, Step, Strategy,
 };
 use glam::Vec3;
+use smallvec::SmallVec;
 
-use crate::bsdf::{Bsdf, Transport};
+use crate::bsdf::Transport;
 use crate::camera::{Camera, FilmDirection, PerturbedFilm};
 use crate::lights::Lights;
 use crate::scattering::{BsdfSampling, Roulette};
 use crate::scene::Scene;
-use crate::vertex::SceneVertex;
+use crate::vertex::{SceneVertex, Site};
 
 /// The mutations' mix and sizes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -108,6 +109,45 @@ impl Strategy<SceneVertex> for PerturbedDirection<'_> {
     }
 }
 
+/// Which shapes are specular: every lobe of their material at most as rough
+/// as a threshold. Decided once per scene, since roughness is not textured.
+#[derive(Clone, Debug)]
+pub struct Specular {
+    shapes: Vec<bool>,
+}
+
+impl Specular {
+    /// The classification of `scene`'s shapes by `threshold`.
+    #[must_use]
+    pub fn of(scene: &Scene, threshold: f32) -> Self {
+        Specular {
+            shapes: scene
+                .shapes
+                .iter()
+                .map(|s| !scene.materials[s.material].is_rougher_than(threshold))
+                .collect(),
+        }
+    }
+
+    /// True if `v` lies on a specular surface (lights, points and the lens
+    /// are not specular).
+    #[must_use]
+    pub fn at(&self, v: &SceneVertex) -> bool {
+        match v.site {
+            Site::Surface { shape, .. } => {
+                self.shapes.get(shape as usize).copied().unwrap_or(false)
+            }
+            _ => false,
+        }
+    }
+}
+
+/// 2^−|d|, the falloff of Veach's deletion and length choices.
+fn falloff(d: i64) -> f64 {
+    // The bits of 2^−k: exponent 1023 − k, no mantissa.
+    f64::from_bits((1023 - d.unsigned_abs().min(1000)) << 52)
+}
+
 /// Veach's four mutations over a scene, chosen in proportion to their
 /// frequencies among those that apply to the current path.
 #[derive(Debug)]
@@ -115,6 +155,7 @@ pub struct Mutations<'a, 's> {
     scene: &'s Scene,
     camera: &'a Camera,
     lights: &'a Lights<'s>,
+    specular: &'a Specular,
     settings: MutationSettings,
     eye_bsdf: BsdfSampling<'s>,
     light_bsdf: BsdfSampling<'s>,
@@ -145,18 +186,22 @@ impl Kind {
 }
 
 impl<'a, 's> Mutations<'a, 's> {
-    /// The mutations for paths of `scene` seen by `camera` and lit by `lights`.
+    /// The mutations for paths of `scene` seen by `camera` and lit by
+    /// `lights`, with its shapes classified by `specular` (made with
+    /// `settings.roughness_threshold`).
     #[must_use]
     pub fn new(
         scene: &'s Scene,
         camera: &'a Camera,
         lights: &'a Lights<'s>,
+        specular: &'a Specular,
         settings: MutationSettings,
     ) -> Self {
         Mutations {
             scene,
             camera,
             lights,
+            specular,
             settings,
             eye_bsdf: BsdfSampling::new(scene, Transport::Radiance, Roulette::NEVER),
             light_bsdf: BsdfSampling::new(scene, Transport::Importance, Roulette::NEVER),
@@ -171,8 +216,7 @@ impl<'a, 's> Mutations<'a, 's> {
 
     /// True if `v` is at most as rough as the threshold.
     fn specular(&self, v: &SceneVertex) -> bool {
-        Bsdf::at(self.scene, v)
-            .is_some_and(|b| !b.is_rougher_than(self.settings.roughness_threshold))
+        self.specular.at(v)
     }
 
     /// The end of the specular chain that starts at vertex `from`: the first
@@ -239,26 +283,27 @@ impl<'a, 's> Mutations<'a, 's> {
         let n = x.len();
         // A pinhole's vertex is a Dirac point: it is always kept.
         let lo = usize::from(!self.camera.has_lens());
-        let deletions: smallvec::SmallVec<[f64; 16]> = (1..=n + 1 - lo)
-            .map(|kd: usize| 0.5f64.powi((kd as i32 - 2).abs()))
-            .collect();
+        let deletions: SmallVec<[f64; 16]> =
+            (1..=n + 1 - lo).map(|kd| falloff(kd as i64 - 2)).collect();
         let kd = 1 + m.choose(&deletions)?;
-        let eye = lo + m.choose_uniform(n + 2 - kd - lo)?;
+        // The kept eye prefix, uniform over lo ..= n + 1 − kd.
+        let prefixes: SmallVec<[f64; 16]> = (0..=n + 1 - kd)
+            .map(|e| if e >= lo { 1.0 } else { 0.0 })
+            .collect();
+        let eye = m.copy_eye_prefix(x, &prefixes)?;
         let light = n + 1 - kd - eye;
-        m.copy_eye(x, 0..eye)?;
         m.copy_light(x, n - light..n)?;
         let kept = eye + light;
-        let lengths: smallvec::SmallVec<[f64; 16]> = (0..=self.settings.max_vertices)
-            .map(|l: usize| {
+        let lengths: SmallVec<[f64; 16]> = (0..=self.settings.max_vertices)
+            .map(|l| {
                 if l < 2 || l < kept || (kd == 1 && l == kept) {
                     0.0
                 } else {
-                    0.5f64.powi((l as i32 - n as i32).abs())
+                    falloff(l as i64 - n as i64)
                 }
             })
             .collect();
-        let length = m.choose(&lengths)?;
-        m.expect_len(length)?;
+        let length = m.choose_length(&lengths)?;
         let added = length - kept;
         let on_eye = m.choose_uniform(added + 1)?;
         let on_light = added - on_eye;
@@ -337,11 +382,10 @@ impl<'a, 's> Mutations<'a, 's> {
         for _ in 1..k - 1 {
             m.light(&self.light_bsdf)?;
         }
-        // The light side holds x_{n−1} … x_k, then the new y_{k−1} … y₁.
-        let side = m.light_side();
-        let new: smallvec::SmallVec<[SceneVertex; 8]> =
-            side[n - k..].iter().rev().copied().collect();
-        let ok = !self.specular(&new[0]) && new[1..].iter().all(|y| self.specular(y));
+        // The light side holds x_{n−1} … x_k, then the new y_{k−1} … y₁: y₁
+        // is its vertex n − 2 from the light.
+        let ok = !self.specular(m.light_vertex(n - 2))
+            && (n - k..n - 2).all(|j| self.specular(m.light_vertex(j)));
         m.require(ok)?;
         m.copy_eye(x, 0..1)
     }
@@ -412,6 +456,18 @@ impl Mutation<SceneVertex> for Only<'_, '_, '_> {
             }
             Kind::Caustic => mu.caustic(x, m),
             Kind::MultiChain => mu.multi_chain(x, m),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::falloff;
+
+    #[test]
+    fn falloff_halves_per_step() {
+        for d in -40i64..40 {
+            assert_eq!(falloff(d), 0.5f64.powi(d.abs() as i32), "{d}");
         }
     }
 }

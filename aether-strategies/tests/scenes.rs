@@ -303,3 +303,62 @@ fn gradient_domain_parameters_are_read_under_both_names() {
         "{e}"
     );
 }
+
+#[test]
+fn metropolis_parameters_are_read_and_checked() {
+    use aether_strategies::scene::MetropolisSettings;
+    let load = |name: &str, integrator: &str| {
+        let xml = format!(
+            "<scene><sensor type=\"perspective\"/>\n{integrator}\n<shape type=\"sphere\"/></scene>"
+        );
+        Scene::load(&write_temp(name, &xml), &HashMap::new())
+    };
+    let aether = load(
+        "aether-mlt.xml",
+        "<integrator type=\"mymlt\"><integer name=\"directSamples\" value=\"16\"/><integer name=\"luminanceSamples\" value=\"5000\"/><boolean name=\"causticPerturbation\" value=\"false\"/><integer name=\"workUnits\" value=\"8\"/></integrator>",
+    )
+    .unwrap();
+    assert_eq!(aether.integrator.name, "mlt");
+    assert_eq!(
+        aether.integrator.metropolis,
+        MetropolisSettings {
+            luminance_samples: 5000,
+            large_step: 0.3,
+            chains: 8,
+            direct_samples: 16,
+            mutations: [1.0, 1.0, 0.0, 1.0],
+        }
+    );
+    assert!(aether.warnings.is_empty(), "{:?}", aether.warnings);
+    let pssmlt = load(
+        "pssmlt.xml",
+        "<integrator type=\"pssmlt\"><float name=\"pLarge\" value=\"0.5\"/><integer name=\"chains\" value=\"4\"/></integrator>",
+    )
+    .unwrap();
+    assert_eq!(pssmlt.integrator.name, "pssmlt");
+    let m = pssmlt.integrator.metropolis;
+    assert_eq!((m.large_step, m.chains, m.direct_samples), (0.5, 4, 0));
+    for (file, integrator, message) in [
+        (
+            "bad-plarge.xml",
+            "<integrator type=\"mmlt\"><float name=\"pLarge\" value=\"1.5\"/></integrator>",
+            "pLarge must lie in [0, 1]",
+        ),
+        (
+            "bad-chains.xml",
+            "<integrator type=\"mlt\"><integer name=\"chains\" value=\"0\"/></integrator>",
+            "chains must be a positive integer",
+        ),
+        (
+            "bad-mix.xml",
+            "<integrator type=\"mlt\"><boolean name=\"bidirectionalMutation\" value=\"false\"/></integrator>",
+            "bidirectionalMutation cannot be off",
+        ),
+    ] {
+        let e = load(file, integrator).map(|_| ()).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("{file}:2")) && e.contains(message),
+            "{e}"
+        );
+    }
+}

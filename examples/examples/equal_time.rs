@@ -7,7 +7,8 @@
 //! - The keyhole box: BDPT should beat path tracing, and tridirectional
 //!   tracing, which samples segments through the keyhole, BDPT.
 //! - Aether's cbox-sphere: gradient-domain path tracing against path tracing.
-//! - Veach's door: primary-sample-space MLT against BDPT.
+//! - Veach's door: Veach's MLT, primary-sample-space MLT and multiplexed
+//!   MLT against BDPT.
 //!
 //! ```text
 //! cargo run --release -p examples --example equal_time -- \
@@ -51,8 +52,8 @@ const CASES: [Case; 4] = [
     Case {
         name: "veach_door",
         file: "../shared/scenes/aether/veach_door/door-bdpt.xml",
-        integrators: &["bdpt", "pssmlt"],
-        claims: &[("pssmlt", "bdpt")],
+        integrators: &["bdpt", "mlt", "pssmlt", "mmlt"],
+        claims: &[("mlt", "bdpt"), ("pssmlt", "bdpt"), ("mmlt", "bdpt")],
     },
     Case {
         name: "cbox-sphere",

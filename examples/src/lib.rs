@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use aether_strategies::scene::Scene;
 use integrators::estimator::Estimator;
 use integrators::gradient::{GradientPathTracer, render_gradient_passes};
-use integrators::mlt::{MltSettings, render_mlt};
+use integrators::mlt::{MltSettings, Variant, render_mlt};
 use integrators::output::{write_exr, write_png};
 use integrators::render::{Passes, Rendered, Settings, estimator, render_passes, render_with};
 
@@ -96,7 +96,7 @@ pub fn render_for(
     let settings = Settings::new(1, seed);
     let stop = AtomicBool::new(false);
     let budget = Duration::from_secs_f64(seconds);
-    if integrator == "pssmlt" {
+    if Variant::named(integrator).is_some() {
         return mlt_for(scene, budget, seed);
     }
     if integrator != "gpt" {
@@ -114,22 +114,24 @@ pub fn render_for(
     })
 }
 
-/// PSSMLT for `budget`, its bootstrap included: four bootstrap samples per
-/// pixel (at most 100 000), then mutations until the time is up. Its
+/// The Metropolis method `scene` names, for `budget`, its bootstrap (and
+/// direct pass) included: four bootstrap samples per pixel (at most the
+/// scene's luminanceSamples), then mutations until the time is up. Its
 /// "passes" are mutations per pixel.
 fn mlt_for(scene: &Scene, budget: Duration, seed: u64) -> Result<Passes, String> {
     let [_, _, cw, ch] = scene.film.crop;
     let pixels = u64::from(cw) * u64::from(ch);
+    let named = MltSettings::for_scene(scene);
     let mlt = MltSettings {
-        bootstrap: (4 * pixels).min(100_000) as usize,
-        ..MltSettings::default()
+        bootstrap: (4 * pixels).min(named.bootstrap as u64) as usize,
+        ..named
     };
     let settings = Settings {
         time_limit: Some(budget),
         ..Settings::new(u32::MAX / 2, seed)
     };
     let r = render_mlt(scene, mlt, &settings, &AtomicBool::new(false))?;
-    let mutations = r.samples.saturating_sub(mlt.bootstrap as u64);
+    let mutations = r.samples;
     Ok(Passes {
         image: r.film.image(),
         passes: (mutations / pixels.max(1)) as u32,

@@ -60,6 +60,27 @@ pub struct Bsdf<'s> {
     uv: Vec2,
 }
 
+impl Material {
+    /// True if every lobe is rougher than `threshold` (microfacet α along
+    /// both axes), looking through two-sided and bump-map wrappers: see
+    /// [`Bsdf::is_rougher_than`]. Roughness is not textured, so this holds
+    /// for every point of a shape.
+    #[must_use]
+    pub fn is_rougher_than(&self, threshold: f32) -> bool {
+        let rough =
+            |r: &Option<Roughness>| r.is_some_and(|r| r.alpha[0].min(r.alpha[1]) > threshold);
+        match self {
+            Material::Conductor { roughness, .. }
+            | Material::Dielectric { roughness, .. }
+            | Material::Plastic { roughness, .. } => rough(roughness),
+            Material::Diffuse { .. } => true,
+            Material::BumpMap { inner, .. } | Material::TwoSided(inner) => {
+                inner.is_rougher_than(threshold)
+            }
+        }
+    }
+}
+
 impl<'s> Bsdf<'s> {
     /// The BSDF at `v`, or `None` if it is not on a surface.
     #[must_use]
@@ -131,14 +152,7 @@ impl<'s> Bsdf<'s> {
     /// may reconnect. Diffuse surfaces always are; smooth ones never.
     #[must_use]
     pub fn is_rougher_than(&self, threshold: f32) -> bool {
-        let rough =
-            |r: &Option<Roughness>| r.is_some_and(|r| r.alpha[0].min(r.alpha[1]) > threshold);
-        match self.material {
-            Material::Conductor { roughness, .. }
-            | Material::Dielectric { roughness, .. }
-            | Material::Plastic { roughness, .. } => rough(roughness),
-            Material::Diffuse { .. } | Material::BumpMap { .. } | Material::TwoSided(_) => true,
-        }
+        self.material.is_rougher_than(threshold)
     }
 
     /// A rough measure of how much of the light arriving here the surface

@@ -78,7 +78,8 @@ pub struct MltSettings {
     /// Independent chains (fixed, so that an image depends on the seed and
     /// not on the threads).
     pub chains: usize,
-    /// Independent samples that estimate the normalisation and seed the chains.
+    /// Independent samples that estimate the normalisation and seed the
+    /// chains (for multiplexed MLT, per path length).
     pub bootstrap: usize,
     /// Relative frequencies of Veach's bidirectional, lens, caustic and
     /// multi-chain mutations.
@@ -160,7 +161,8 @@ pub(crate) fn target(contributions: &Splats) -> f64 {
 /// `settings.spp` mutations per pixel of the crop window in `mlt.chains`
 /// chains run in parallel; deterministic for a seed. The time limit and
 /// `stop` end the chains early, and the image is normalised by the
-/// mutations made.
+/// mutations made. The result counts mutations as its samples (its time
+/// includes the bootstrap).
 ///
 /// # Errors
 /// If BDPT cannot be built, the scene is black (no bootstrap sample
@@ -181,7 +183,7 @@ pub fn render_mlt(
             let sampler = primary::Mmlt::new(scene)?.with_large_step(p);
             run_chains(&sampler, scene, &mlt, settings, stop)
         }
-        Variant::Veach => veach::render(scene, &mlt, settings, stop),
+        Variant::Veach => veach::render(scene, &mlt, settings, stop).map(|(r, _)| r),
     }
 }
 
@@ -214,9 +216,10 @@ pub(crate) fn run_chains<S: Sampler>(
     };
     let seed = settings.seed;
     let classes = sampler.classes().max(1);
-    let (image, mutations, samples, rays) = pool.install(|| -> Result<_, String> {
-        // Bootstrap: sample i belongs to class i mod classes, on stream i.
-        let bootstrap = mlt.bootstrap.max(classes);
+    let (image, mutations, rays) = pool.install(|| -> Result<_, String> {
+        // Bootstrap: sample i belongs to class i mod classes, on stream i;
+        // each class gets the number asked for (as pbrt-v3's MMLT does).
+        let bootstrap = mlt.bootstrap.max(1) * classes;
         let fs: Vec<f64> = (0..bootstrap as u64)
             .into_par_iter()
             .map(|i| sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i)))
@@ -308,7 +311,7 @@ pub(crate) fn run_chains<S: Sampler>(
         for a in &mut image {
             *a = a.map(|v| v * scale);
         }
-        Ok((image, mutations, bootstrap as u64 + mutations, rays))
+        Ok((image, mutations, rays))
     })?;
     bar.finish_and_clear();
     let in_crop = |i: usize| {
@@ -319,7 +322,7 @@ pub(crate) fn run_chains<S: Sampler>(
     Ok(Rendered {
         film,
         seconds: start.elapsed().as_secs_f64(),
-        samples,
+        samples: mutations,
         rays,
         ray_seconds: 0.0,
         complete: mutations >= total,

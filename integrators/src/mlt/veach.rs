@@ -8,13 +8,13 @@
 //! the normalisation. Optionally, direct lighting (paths of one and two
 //! edges) is rendered separately, as Veach did, and left out of the chains.
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use aether_core::{ChainPath, Pcg32, UniformSource, acceptance, propose, transition_density};
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
 use aether_strategies::lights::Lights;
-use aether_strategies::mutations::{MutationSettings, Mutations};
+use aether_strategies::mutations::{Kind, MutationSettings, Mutations, Only, Specular};
 use aether_strategies::scene::Scene;
 use aether_strategies::spectrum::luminance;
 use aether_strategies::vertex::SceneVertex;
@@ -42,6 +42,45 @@ pub struct State {
     f: f64,
 }
 
+/// How each mutation fared: proposals made, proposals that produced a path
+/// carrying light, and the sum of their acceptance probabilities.
+#[derive(Debug, Default)]
+pub struct Statistics {
+    counts: [[AtomicU64; 3]; 4],
+}
+
+/// Acceptance probabilities are summed in units of 2⁻³².
+const FIXED: f64 = 4_294_967_296.0;
+
+impl Statistics {
+    fn record(&self, kind: Kind, produced: bool, accept: f64) {
+        let c = &self.counts[kind as usize];
+        c[0].fetch_add(1, Ordering::Relaxed);
+        if produced {
+            c[1].fetch_add(1, Ordering::Relaxed);
+            c[2].fetch_add((accept * FIXED) as u64, Ordering::Relaxed);
+        }
+    }
+
+    /// For each mutation: proposals, proposals that produced a path
+    /// carrying light, and the mean acceptance probability over all
+    /// proposals.
+    #[must_use]
+    pub fn rows(&self) -> [(Kind, u64, u64, f64); 4] {
+        Kind::ALL.map(|k| {
+            let c = &self.counts[k as usize];
+            let n = c[0].load(Ordering::Relaxed);
+            let accepted = c[2].load(Ordering::Relaxed) as f64 / FIXED;
+            (
+                k,
+                n,
+                c[1].load(Ordering::Relaxed),
+                accepted / n.max(1) as f64,
+            )
+        })
+    }
+}
+
 /// Veach's MLT on a scene.
 #[derive(Debug)]
 pub struct VeachMlt<'s> {
@@ -50,9 +89,11 @@ pub struct VeachMlt<'s> {
     lights: Lights<'s>,
     bdpt: Bdpt<'s>,
     settings: MutationSettings,
+    specular: Specular,
     /// Paths of at most this many vertices are rendered by a separate
     /// direct-lighting pass (0: none).
     direct_vertices: usize,
+    statistics: Statistics,
 }
 
 impl<'s> VeachMlt<'s> {
@@ -73,19 +114,33 @@ impl<'s> VeachMlt<'s> {
         ] = mlt.mutations;
         settings.roughness_threshold = scene.integrator.gradient.roughness_threshold;
         Ok(VeachMlt {
+            specular: Specular::of(scene, settings.roughness_threshold),
             scene,
             camera: Camera::new(scene)?,
             lights,
             bdpt,
             settings,
             direct_vertices: if mlt.direct_samples > 0 { 3 } else { 0 },
+            statistics: Statistics::default(),
         })
+    }
+
+    /// How each mutation fared so far.
+    #[must_use]
+    pub fn statistics(&self) -> &Statistics {
+        &self.statistics
     }
 
     /// The mutations, borrowing this sampler's camera and lights.
     #[must_use]
     pub fn mutations(&self) -> Mutations<'_, 's> {
-        Mutations::new(self.scene, &self.camera, &self.lights, self.settings)
+        Mutations::new(
+            self.scene,
+            &self.camera,
+            &self.lights,
+            &self.specular,
+            self.settings,
+        )
     }
 
     /// The contributions and F of `state.path`. Edges copied from `from`
@@ -211,19 +266,43 @@ impl Sampler for VeachMlt<'_> {
 
     fn mutate(&self, current: &State, proposal: &mut State, rng: &mut Pcg32) -> f64 {
         let mutations = self.mutations();
-        let Some((y, _)) = propose(&mutations, &current.path, rng) else {
+        // Picking the mutation here, as the mixture's own code would, lets
+        // the chain count how each fares; T is still the mixture's.
+        let weights = mutations.weights(current.path.vertices());
+        let total: f64 = weights.iter().sum();
+        let mut u = f64::from(rng.next_f32()) * total;
+        let index = weights
+            .iter()
+            .position(|&w| {
+                let hit = w > 0.0 && u < w;
+                u -= w;
+                hit
+            })
+            .or_else(|| weights.iter().rposition(|&w| w > 0.0))
+            .unwrap_or(0);
+        let kind = Kind::ALL[index];
+        let only = Only {
+            mutations: &mutations,
+            kind,
+        };
+        let proposed = propose(&only, &current.path, rng);
+        let Some((y, _)) = proposed else {
             proposal.contributions.clear();
             proposal.f = 0.0;
+            self.statistics.record(kind, false, 0.0);
             return 0.0;
         };
         proposal.path = y;
         self.evaluate(proposal, Some(&current.path));
         if proposal.f == 0.0 {
+            self.statistics.record(kind, false, 0.0);
             return 0.0;
         }
         let forward = transition_density(&mutations, &current.path, &proposal.path);
         let backward = transition_density(&mutations, &proposal.path, &current.path);
-        acceptance(current.f, proposal.f, forward, backward)
+        let a = acceptance(current.f, proposal.f, forward, backward);
+        self.statistics.record(kind, true, a);
+        a
     }
 
     fn contributions<'a>(&self, state: &'a State) -> (&'a Splats, f64) {
@@ -232,18 +311,32 @@ impl Sampler for VeachMlt<'_> {
 }
 
 /// Renders `scene` by Veach's MLT, plus the separate direct-lighting pass
-/// if `mlt` asks for one.
-pub(crate) fn render(
+/// if `mlt` asks for one; also returns how each mutation fared.
+///
+/// # Errors
+/// As [`render_mlt`](super::render_mlt).
+pub fn render(
+    scene: &Scene,
+    mlt: &MltSettings,
+    settings: &Settings,
+    stop: &AtomicBool,
+) -> Result<(Rendered, Statistics), String> {
+    let sampler = VeachMlt::new(scene, mlt)?;
+    let rendered = render_with_direct(&sampler, scene, mlt, settings, stop)?;
+    Ok((rendered, sampler.statistics))
+}
+
+fn render_with_direct(
+    sampler: &VeachMlt<'_>,
     scene: &Scene,
     mlt: &MltSettings,
     settings: &Settings,
     stop: &AtomicBool,
 ) -> Result<Rendered, String> {
-    let sampler = VeachMlt::new(scene, mlt)?;
-    let chains = run_chains(&sampler, scene, mlt, settings, stop)?;
     if mlt.direct_samples == 0 {
-        return Ok(chains);
+        return run_chains(sampler, scene, mlt, settings, stop);
     }
+    // The direct pass first, so that the chains get what is left of the time.
     let direct = DirectLighting::new(scene)?;
     let pass = Settings {
         spp: mlt.direct_samples,
@@ -251,6 +344,13 @@ pub(crate) fn render(
         ..settings.clone()
     };
     let lit = render_with(scene, &direct, &pass, stop)?;
+    let rest = Settings {
+        time_limit: settings
+            .time_limit
+            .map(|t| t.saturating_sub(std::time::Duration::from_secs_f64(lit.seconds))),
+        ..settings.clone()
+    };
+    let chains = run_chains(sampler, scene, mlt, &rest, stop)?;
     let (w, h) = (scene.film.width, scene.film.height);
     let image: Vec<[f64; 3]> = chains
         .film
@@ -267,7 +367,7 @@ pub(crate) fn render(
     Ok(Rendered {
         film: Film::from_image(w, h, &image, in_crop),
         seconds: chains.seconds + lit.seconds,
-        samples: chains.samples + lit.samples,
+        samples: chains.samples,
         rays: chains.rays + lit.rays,
         ray_seconds: 0.0,
         complete: chains.complete && lit.complete,
