@@ -294,7 +294,7 @@ impl<'a, 's> Mutations<'a, 's> {
         let light = n + 1 - kd - eye;
         m.copy_light(x, n - light..n)?;
         let kept = eye + light;
-        let lengths: SmallVec<[f64; 16]> = (0..=self.settings.max_vertices)
+        let lengths: SmallVec<[f64; 40]> = (0..=self.settings.max_vertices)
             .map(|l| {
                 if l < 2 || l < kept || (kd == 1 && l == kept) {
                     0.0

@@ -18,6 +18,8 @@
 //!   sample per pixel, over the difference in samples, so that the render
 //!   loop's fixed costs (film, tiles, threads) cancel.
 //! - Gradient-domain tracing's times leave out its reconstruction.
+//! - Metropolis rows (Veach's MLT, PSSMLT, multiplexed MLT) count
+//!   mutations as samples, after a bootstrap of one sample per pixel.
 
 use std::alloc::System;
 use std::collections::HashMap;
@@ -48,6 +50,9 @@ fn run(
     threads: Option<usize>,
 ) -> Result<Rendered, String> {
     scene.integrator.name = integrator.to_string();
+    // Metropolis methods bootstrap with one sample per pixel, so that the
+    // rows measure mutations.
+    scene.integrator.metropolis.luminance_samples = scene.film.width * scene.film.height;
     let settings = Settings {
         threads,
         ..Settings::new(spp, 1)
@@ -148,7 +153,9 @@ fn main() {
     let mut csv = String::from(
         "scene,integrator,width,height,spp,samples_per_second,rays_per_second,ray_share,allocations_per_sample,one_thread_samples_per_second,scaling\n",
     );
-    let all = ["direct", "path", "light", "bdpt", "tridir", "gpt"];
+    let all = [
+        "direct", "path", "light", "bdpt", "tridir", "gpt", "mlt", "pssmlt", "mmlt",
+    ];
     let mut cbox = cornell_box(size, size, spp);
     table("built-in Cornell box", &mut cbox, spp, &all, &mut csv);
     let others = [

@@ -9,7 +9,9 @@
 //! - [`bdpt`]: bidirectional path tracing over every (s, t), and
 //!   tridirectional path tracing with a portal segment; [`techniques`] holds
 //!   its optional (s, t) images;
-//! - [`mlt`]: primary-sample-space Metropolis light transport on BDPT;
+//! - [`mlt`]: Metropolis light transport: Veach's path-space MLT with
+//!   mutations whose transition densities the language derives, and
+//!   primary-sample-space and multiplexed MLT on BDPT;
 //! - [`gradient`]: gradient-domain path tracing, its images reconstructed
 //!   by [`poisson`];
 //! - [`estimator`]: what the [`render`] loop asks of each; [`film`],

@@ -53,30 +53,37 @@ fn veach_mlt_converges_to_bdpt_on_the_built_in_cornell_box() {
 }
 
 #[test]
-fn pssmlt_depends_on_the_seed_not_on_the_threads() {
+fn every_variant_depends_on_the_seed_not_on_the_threads() {
     let scene = cornell_box(12, 12, 1);
     let stop = AtomicBool::new(false);
-    let mlt = MltSettings {
-        bootstrap: 2_000,
-        chains: 4,
-        ..MltSettings::default()
-    };
-    let run = |threads, seed| {
-        let settings = Settings {
-            threads: Some(threads),
-            ..Settings::new(16, seed)
+    for variant in [Variant::Veach, Variant::Primary, Variant::Multiplexed] {
+        let mlt = MltSettings {
+            variant,
+            bootstrap: 2_000,
+            chains: 4,
+            ..MltSettings::default()
         };
-        render_mlt(&scene, mlt, &settings, &stop)
-            .unwrap()
-            .film
-            .image()
-    };
-    let one = run(1, 3);
-    assert_eq!(one, run(2, 3));
-    assert_ne!(one, run(2, 4));
-    assert!(one.iter().flatten().all(|v| v.is_finite()));
-    // The render loop's dispatch by name reaches it too.
-    let mut named = cornell_box(12, 12, 1);
-    named.integrator.name = "pssmlt".into();
-    assert!(render(&named, &Settings::new(2, 1), &stop).is_ok());
+        let run = |threads, seed| {
+            let settings = Settings {
+                threads: Some(threads),
+                ..Settings::new(16, seed)
+            };
+            render_mlt(&scene, mlt, &settings, &stop)
+                .unwrap()
+                .film
+                .image()
+        };
+        let one = run(1, 3);
+        assert_eq!(one, run(2, 3), "{variant:?}");
+        assert_ne!(one, run(2, 4), "{variant:?}");
+        assert!(one.iter().flatten().all(|v| v.is_finite()), "{variant:?}");
+    }
+    // The render loop's dispatch by name reaches them too.
+    for name in ["mlt", "pssmlt", "mmlt"] {
+        let mut named = cornell_box(12, 12, 1);
+        named.integrator.name = name.into();
+        named.integrator.metropolis.luminance_samples = 500;
+        let r = render(&named, &Settings::new(2, 1), &stop).unwrap();
+        assert_eq!(r.samples, 2 * 12 * 12, "{name}: mutations");
+    }
 }

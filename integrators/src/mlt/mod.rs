@@ -20,11 +20,11 @@
 pub mod primary;
 pub mod veach;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 use aether_core::{Pcg32, UniformSource};
-use aether_strategies::geometry::rays_cast;
+use aether_strategies::geometry::{ray_nanos, rays_cast};
 use aether_strategies::scene::Scene;
 use aether_strategies::spectrum::luminance;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -216,13 +216,20 @@ pub(crate) fn run_chains<S: Sampler>(
     };
     let seed = settings.seed;
     let classes = sampler.classes().max(1);
-    let (image, mutations, rays) = pool.install(|| -> Result<_, String> {
+    let (image, mutations, rays, nanos) = pool.install(|| -> Result<_, String> {
         // Bootstrap: sample i belongs to class i mod classes, on stream i;
         // each class gets the number asked for (as pbrt-v3's MMLT does).
         let bootstrap = mlt.bootstrap.max(1) * classes;
+        let (boot_rays, boot_nanos) = (AtomicU64::new(0), AtomicU64::new(0));
         let fs: Vec<f64> = (0..bootstrap as u64)
             .into_par_iter()
-            .map(|i| sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i)))
+            .map(|i| {
+                let (rays, nanos) = (rays_cast(), ray_nanos());
+                let f = sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i));
+                boot_rays.fetch_add(rays_cast() - rays, Ordering::Relaxed);
+                boot_nanos.fetch_add(ray_nanos() - nanos, Ordering::Relaxed);
+                f
+            })
             .collect();
         // Per class: its samples' running sums (to pick seeds) and b.
         let mut cumulative = vec![Vec::new(); classes];
@@ -240,10 +247,10 @@ pub(crate) fn run_chains<S: Sampler>(
         if !(b_total > 0.0 && b_total.is_finite()) {
             return Err("no bootstrap sample carries light: the image is black".to_string());
         }
-        let results: Vec<(Vec<[f64; 3]>, u64, u64)> = (0..chains as u64)
+        let results: Vec<(Vec<[f64; 3]>, u64, [u64; 2])> = (0..chains as u64)
             .into_par_iter()
             .map(|k| {
-                let rays_before = rays_cast();
+                let before = [rays_cast(), ray_nanos()];
                 let mut rng = Pcg32::new(seed ^ 0x6d6c_745f_6368_6169, k);
                 // Each class starts at a bootstrap sample picked in proportion to F.
                 let mut current: Vec<S::State> = (0..classes)
@@ -294,11 +301,16 @@ pub(crate) fn run_chains<S: Sampler>(
                     }
                     done += 1;
                 }
-                (image, done, rays_cast() - rays_before)
+                (
+                    image,
+                    done,
+                    [rays_cast() - before[0], ray_nanos() - before[1]],
+                )
             })
             .collect();
         let mutations: u64 = results.iter().map(|r| r.1).sum();
-        let rays: u64 = results.iter().map(|r| r.2).sum();
+        let rays = boot_rays.into_inner() + results.iter().map(|r| r.2[0]).sum::<u64>();
+        let nanos = boot_nanos.into_inner() + results.iter().map(|r| r.2[1]).sum::<u64>();
         let mut image = vec![[0.0f64; 3]; w as usize * h as usize];
         for (chain, _, _) in &results {
             for (a, c) in image.iter_mut().zip(chain) {
@@ -311,7 +323,7 @@ pub(crate) fn run_chains<S: Sampler>(
         for a in &mut image {
             *a = a.map(|v| v * scale);
         }
-        Ok((image, mutations, rays))
+        Ok((image, mutations, rays, nanos))
     })?;
     bar.finish_and_clear();
     let in_crop = |i: usize| {
@@ -324,7 +336,7 @@ pub(crate) fn run_chains<S: Sampler>(
         seconds: start.elapsed().as_secs_f64(),
         samples: mutations,
         rays,
-        ray_seconds: 0.0,
+        ray_seconds: nanos as f64 * 1e-9,
         complete: mutations >= total,
     })
 }

@@ -369,7 +369,7 @@ fn render_with_direct(
         seconds: chains.seconds + lit.seconds,
         samples: chains.samples,
         rays: chains.rays + lit.rays,
-        ray_seconds: 0.0,
+        ray_seconds: chains.ray_seconds + lit.ray_seconds,
         complete: chains.complete && lit.complete,
     })
 }
