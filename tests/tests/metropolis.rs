@@ -5,7 +5,10 @@
 //! plus three binomial deviations), and image means within 1 % with a
 //! standard error below a third of that.
 
+use std::sync::OnceLock;
 use std::sync::atomic::AtomicBool;
+
+use aether_strategies::scene::Scene;
 
 use integrators::cornell::cornell_box;
 use integrators::mlt::{MltSettings, Variant, render_mlt};
@@ -14,10 +17,22 @@ use tests::{Estimate, assert_agree};
 
 const RENDERS: u32 = 8;
 
-fn converges(variant: Variant, name: &str, mutations_per_pixel: u32) {
+/// The box of the convergence tests.
+fn scene() -> Scene {
     let mut scene = cornell_box(16, 16, 1);
     scene.integrator.max_depth = 5;
     scene.film.filter = "box".into();
+    scene
+}
+
+/// BDPT's estimate of the box, rendered once for all three tests.
+fn bdpt() -> &'static Estimate {
+    static BDPT: OnceLock<Estimate> = OnceLock::new();
+    BDPT.get_or_init(|| Estimate::of(&mut scene(), "bdpt", RENDERS, 128))
+}
+
+fn converges(variant: Variant, name: &str, mutations_per_pixel: u32) {
+    let scene = scene();
     let stop = AtomicBool::new(false);
     let mlt = MltSettings {
         variant,
@@ -33,8 +48,7 @@ fn converges(variant: Variant, name: &str, mutations_per_pixel: u32) {
         })
         .collect();
     let estimate = Estimate::from_images(name, &images);
-    let bdpt = Estimate::of(&mut scene, "bdpt", RENDERS, 128);
-    assert_agree("Cornell box", (&estimate, &bdpt), None, None, 1e-2);
+    assert_agree("Cornell box", (&estimate, bdpt()), None, None, 1e-2);
 }
 
 #[test]
