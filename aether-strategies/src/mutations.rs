@@ -421,9 +421,15 @@ impl<'a, 's> Mutations<'a, 's> {
     }
 }
 
-impl Mutation<SceneVertex> for Mutations<'_, '_> {
-    fn propose(&self, x: &ChainPath<SceneVertex>, m: &mut Mutator<'_, SceneVertex>) -> Option<()> {
-        match Kind::ALL[m.choose(&self.weights(x.vertices()))?] {
+impl Mutations<'_, '_> {
+    /// The mutation `kind` from `x`.
+    fn run(
+        &self,
+        kind: Kind,
+        x: &ChainPath<SceneVertex>,
+        m: &mut Mutator<'_, SceneVertex>,
+    ) -> Option<()> {
+        match kind {
             Kind::Bidirectional => self.bidirectional(x, m),
             Kind::Lens => {
                 let k = self.lens(x, m)?;
@@ -432,6 +438,13 @@ impl Mutation<SceneVertex> for Mutations<'_, '_> {
             Kind::Caustic => self.caustic(x, m),
             Kind::MultiChain => self.multi_chain(x, m),
         }
+    }
+}
+
+impl Mutation<SceneVertex> for Mutations<'_, '_> {
+    fn propose(&self, x: &ChainPath<SceneVertex>, m: &mut Mutator<'_, SceneVertex>) -> Option<()> {
+        let kind = Kind::ALL[m.choose(&self.weights(x.vertices()))?];
+        self.run(kind, x, m)
     }
 }
 
@@ -447,16 +460,7 @@ pub struct Only<'m, 'a, 's> {
 
 impl Mutation<SceneVertex> for Only<'_, '_, '_> {
     fn propose(&self, x: &ChainPath<SceneVertex>, m: &mut Mutator<'_, SceneVertex>) -> Option<()> {
-        let mu = self.mutations;
-        match self.kind {
-            Kind::Bidirectional => mu.bidirectional(x, m),
-            Kind::Lens => {
-                let k = mu.lens(x, m)?;
-                m.copy_light(x, k + 1..x.len())
-            }
-            Kind::Caustic => mu.caustic(x, m),
-            Kind::MultiChain => mu.multi_chain(x, m),
-        }
+        self.mutations.run(self.kind, x, m)
     }
 }
 

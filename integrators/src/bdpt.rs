@@ -264,23 +264,12 @@ impl Bdpt<'_> {
         }
         let eye = Subpath::of(f, End::Camera, cam.vertices());
         let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
-        let mut run = Run {
-            kit,
-            pixel,
-            rng,
-            splats,
-            path: RandomSequence::new(),
-            seeds: None,
-        };
-        let on_lens = |v: &SceneVertex| v.site == Site::Lens;
+        let mut run = Run::new(kit, pixel, rng, splats, None);
         let radiance = if s == 0 {
-            if !light.vertices().last().is_some_and(on_lens) {
-                return Vec3::ZERO;
-            }
-            run.path.extend_from(&light, 0..light.len(), true);
-            self.contribute(&mut run, Split::Bdpt(0), ends.1.product(light.len() - 1))
+            self.reach_lens(&mut run, ends)
         } else {
-            self.join_one(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s), t)
+            run.only = Some(t);
+            self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s))
         };
         radiance.as_vec3()
     }
@@ -317,24 +306,12 @@ impl Bdpt<'_> {
         let light = walk([&kit.emit, &kit.leave], &kit.gather, reach, rng);
         let eye = Subpath::of(f, End::Camera, cam.vertices());
         let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
-        let mut run = Run {
-            kit,
-            pixel,
-            rng,
-            splats,
-            path: RandomSequence::new(),
-            seeds,
-        };
+        let mut run = Run::new(kit, pixel, rng, splats, seeds);
         let mut radiance = DVec3::ZERO;
         for s in 1..=cam.len() {
             radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
         }
-        let on_lens = |v: &SceneVertex| v.site == Site::Lens;
-        if light.vertices().last().is_some_and(on_lens) {
-            run.path.clear();
-            run.path.extend_from(&light, 0..light.len(), true);
-            radiance += self.contribute(&mut run, Split::Bdpt(0), ends.1.product(light.len() - 1));
-        }
+        radiance += self.reach_lens(&mut run, ends);
         // Portal segments for a share of the samples, each counting 1 / share.
         let share = self.portal.is_some() && run.rng.next_f32() < PORTAL_SHARE;
         let Some(portal) = self.portal.as_ref().filter(|_| share) else {
@@ -367,13 +344,35 @@ struct Run<'r, 'a, 's> {
     splats: &'r mut Splats,
     path: Path<'a>,
     seeds: Option<&'r mut Vec<SeedPath>>,
+    /// The one light-prefix length to join, if not all.
+    only: Option<usize>,
+}
+
+impl<'r, 'a, 's> Run<'r, 'a, 's> {
+    fn new(
+        kit: &'a Kit<'a, 's>,
+        pixel: [u32; 2],
+        rng: &'r mut Rng<'r>,
+        splats: &'r mut Splats,
+        seeds: Option<&'r mut Vec<SeedPath>>,
+    ) -> Self {
+        Run {
+            kit,
+            pixel,
+            rng,
+            splats,
+            path: RandomSequence::new(),
+            seeds,
+            only: None,
+        }
+    }
 }
 
 impl<'s> Bdpt<'s> {
     /// Joins the first `n` vertices of the camera side (`head`, whose
-    /// integrand products are `side`) to every light prefix, to a light
-    /// directly, or to nothing if they end on a light: the estimates of
-    /// technique `own`.
+    /// integrand products are `side`) to every light prefix (or only the
+    /// one of `run.only` vertices), to a light directly, or to nothing if
+    /// they end on a light: the estimates of technique `own`.
     fn join<'a>(
         &self,
         run: &mut Run<'_, 'a, 's>,
@@ -382,87 +381,103 @@ impl<'s> Bdpt<'s> {
         (light, lamp): (&Path<'a>, &Subpath<'_>),
         own: Split,
     ) -> DVec3 {
-        let mut radiance = DVec3::ZERO;
-        for t in 0..=lamp.len().max(1).min(self.max_vertices - n) {
-            radiance += self.join_one(run, head, (side, n), (light, lamp), own, t);
+        let (mut radiance, open, only) = (DVec3::ZERO, side.connectible(n - 1), run.only);
+        let all = 0..=lamp.len().max(1).min(self.max_vertices - n);
+        for t in all.filter(|t| only.is_none_or(|o| o == *t)) {
+            run.path.clear();
+            run.path.extend_from(head, 0..n, false);
+            let through = match t {
+                0 => side.emitted(n),
+                1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
+                    side.connect_lamp(n, &run.path.vertices()[n])
+                }
+                2.. if open && lamp.connectible(t - 1) => side.connect(n, lamp, t),
+                _ => continue,
+            };
+            if t >= 2 && through != DVec3::ZERO {
+                run.path.extend_from(light, 0..t, true);
+            }
+            radiance += self.contribute(run, own, through);
         }
         radiance
-    }
-
-    /// One term of [`join`](Self::join): the camera side's first `n`
-    /// vertices joined to the light side's first `t`.
-    fn join_one<'a>(
-        &self,
-        run: &mut Run<'_, 'a, 's>,
-        head: &Path<'a>,
-        (side, n): (&Subpath<'_>, usize),
-        (light, lamp): (&Path<'a>, &Subpath<'_>),
-        own: Split,
-        t: usize,
-    ) -> DVec3 {
-        let open = side.connectible(n - 1);
-        run.path.clear();
-        run.path.extend_from(head, 0..n, false);
-        let through = match t {
-            0 => side.emitted(n),
-            1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
-                side.connect_lamp(n, &run.path.vertices()[n])
-            }
-            2.. if open && t <= lamp.len() && lamp.connectible(t - 1) => side.connect(n, lamp, t),
-            _ => return DVec3::ZERO,
-        };
-        if t >= 2 && through != DVec3::ZERO {
-            run.path.extend_from(light, 0..t, true);
-        }
-        self.contribute(run, own, through)
     }
 
     /// The weighted estimate of `run.path`, sampled by `own`, whose
     /// integrand without the camera's importance is `through`: returned if
     /// the camera subpath chose the pixel, splatted otherwise.
     fn contribute(&self, run: &mut Run<'_, '_, 's>, own: Split, through: DVec3) -> DVec3 {
-        let v = run.path.vertices();
         // Occluded or black paths need no weight.
         if through == DVec3::ZERO {
             return DVec3::ZERO;
         }
-        let d = v[0].direction_to(&v[1]).unwrap_or(Vec3::Z);
+        let (lens, v) = (run.path.vertices()[0], run.path.vertices());
+        let d = lens.direction_to(&v[1]).unwrap_or(Vec3::Z);
         let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
         let at = |j| (j, self.camera.direction(self.scene, j));
         let pixels: SmallVec<[_; 16]> = match splat {
-            true => self.camera.pixels_toward(&v[0], d).map(at).collect(),
+            true => self.camera.pixels_toward(&lens, d).map(at).collect(),
             false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
         let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
-        let (mut seen, mut weighted) = (DVec3::ZERO, DVec3::ZERO);
-        for (&(j, _), (w, p)) in pixels
-            .iter()
-            .zip(self.weights(run.kit, &looks, own, &run.path))
-        {
-            let unweighted = through * self.camera.importance(j, &v[0], d) / p;
-            if let (Some(images), Split::Bdpt(s), true) = (&self.images, own, p > 0.0) {
-                images.add(s, v.len() - s, j, unweighted * w, unweighted, splat);
-            }
+        let (mut seen, weights) = (DVec3::ZERO, self.weights(run.kit, &looks, own, &run.path));
+        for (&(j, _), (w, p)) in pixels.iter().zip(weights) {
+            let unweighted = through * self.camera.importance(j, &lens, d) / p;
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
-                e if splat => {
-                    weighted += e;
-                    run.splats.push((j, e.as_vec3()));
-                }
-                e => {
-                    weighted += e;
-                    seen = e;
-                }
+                e if splat => run.splats.push((j, e.as_vec3())),
+                e => seen = e,
             }
+            self.observe(run, (own, j, splat), unweighted, w, p);
+        }
+        seen
+    }
+
+    /// The estimate of the light subpath as a whole if it ends on a thin
+    /// lens (s = 0).
+    fn reach_lens<'a>(
+        &self,
+        run: &mut Run<'_, 'a, 's>,
+        (light, lamp): (&Path<'a>, &Subpath<'_>),
+    ) -> DVec3 {
+        if !light
+            .vertices()
+            .last()
+            .is_some_and(|v| v.site == Site::Lens)
+        {
+            return DVec3::ZERO;
+        }
+        run.path.clear();
+        run.path.extend_from(light, 0..light.len(), true);
+        self.contribute(run, Split::Bdpt(0), lamp.product(light.len() - 1))
+    }
+
+    /// What the outputs beside the image see of each estimate: the (s, t)
+    /// images, and the paths with their weighted contributions (the seeds
+    /// of Veach's MLT).
+    fn observe(
+        &self,
+        run: &mut Run<'_, '_, 's>,
+        (own, j, splat): (Split, [u32; 2], bool),
+        unweighted: DVec3,
+        w: f64,
+        p: f64,
+    ) {
+        let weighted = unweighted * w;
+        if p <= 0.0 || w == 0.0 || !weighted.is_finite() {
+            return;
+        }
+        let v = run.path.vertices();
+        if let (Some(images), Split::Bdpt(s)) = (&self.images, own) {
+            images.add(s, v.len() - s, j, weighted, unweighted, splat);
         }
         if let Some(seeds) = run.seeds.as_deref_mut().filter(|_| weighted != DVec3::ZERO) {
+            let vertices = v.iter().copied().collect();
             seeds.push(SeedPath {
-                vertices: v.iter().copied().collect(),
+                vertices,
                 weighted,
                 splat,
             });
         }
-        seen
     }
 
     fn integrand<'a>(&'a self, lights: &'a Lights<'s>) -> Integrand<'a> {
