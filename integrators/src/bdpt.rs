@@ -471,12 +471,17 @@ impl<'s> Bdpt<'s> {
             images.add(s, v.len() - s, j, weighted, unweighted, splat);
         }
         if let Some(seeds) = run.seeds.as_deref_mut().filter(|_| weighted != DVec3::ZERO) {
-            let vertices = v.iter().copied().collect();
-            seeds.push(SeedPath {
-                vertices,
-                weighted,
-                splat,
-            });
+            // A splatted path reaches several pixels in turn: one seed.
+            match seeds.last_mut() {
+                Some(last) if splat && last.splat && last.vertices[..] == v[..] => {
+                    last.weighted += weighted;
+                }
+                _ => seeds.push(SeedPath {
+                    vertices: v.iter().copied().collect(),
+                    weighted,
+                    splat,
+                }),
+            }
         }
     }
 

@@ -197,7 +197,7 @@ pub(crate) fn run_chains<S: Sampler>(
 ) -> Result<Rendered, String> {
     let start = Instant::now();
     let (w, h) = (scene.film.width, scene.film.height);
-    let [cx, cy, cw, ch] = scene.film.crop;
+    let [_, _, cw, ch] = scene.film.crop;
     let pool = settings.pool()?;
     let chains = mlt.chains.max(1);
     let total = u64::from(settings.spp) * u64::from(cw) * u64::from(ch);
@@ -291,7 +291,7 @@ pub(crate) fn run_chains<S: Sampler>(
                     let c = if classes == 1 {
                         0
                     } else {
-                        pick(&b, f64::from(rng.next_f32()) * b_total)
+                        pick(b.iter().copied(), f64::from(rng.next_f32()) * b_total).unwrap_or(0)
                     };
                     let a = sampler.mutate(&current[c], &mut proposal, &mut rng);
                     splat(&current[c], 1.0 - a);
@@ -326,13 +326,8 @@ pub(crate) fn run_chains<S: Sampler>(
         Ok((image, mutations, rays, nanos))
     })?;
     bar.finish_and_clear();
-    let in_crop = |i: usize| {
-        let (x, y) = (i as u32 % w, i as u32 / w);
-        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
-    };
-    let film = Film::from_image(w, h, &image, in_crop);
     Ok(Rendered {
-        film,
+        film: crop_film(scene, &image),
         seconds: start.elapsed().as_secs_f64(),
         samples: mutations,
         rays,
@@ -341,13 +336,31 @@ pub(crate) fn run_chains<S: Sampler>(
     })
 }
 
-/// The index whose share of `weights` holds `target` (in [0, Σ weights)).
-fn pick(weights: &[f64], mut target: f64) -> usize {
-    for (i, &w) in weights.iter().enumerate() {
-        if target < w {
-            return i;
+/// The index whose share of `weights` holds `target` (in [0, Σ weights)),
+/// or the last positive weight's where rounding leaves `target` past the
+/// end; `None` if no weight is positive.
+pub(crate) fn pick(weights: impl IntoIterator<Item = f64>, mut target: f64) -> Option<usize> {
+    let mut last = None;
+    for (i, w) in weights.into_iter().enumerate() {
+        if w > 0.0 {
+            if target < w {
+                return Some(i);
+            }
+            target -= w;
+            last = Some(i);
         }
-        target -= w;
     }
-    weights.iter().rposition(|&w| w > 0.0).unwrap_or(0)
+    last
+}
+
+/// A film holding `image` (row by row) at the pixels of `scene`'s crop
+/// window.
+pub(crate) fn crop_film(scene: &Scene, image: &[[f64; 3]]) -> Film {
+    let (w, h) = (scene.film.width, scene.film.height);
+    let [cx, cy, cw, ch] = scene.film.crop;
+    let in_crop = |i: usize| {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
+    };
+    Film::from_image(w, h, image, in_crop)
 }

@@ -30,7 +30,7 @@ pub struct State {
 
 /// The pixel two uniforms pick in `scene`'s crop window, and the number of
 /// pixels there.
-fn pixel(scene: &Scene, u: &mut dyn UniformSource) -> ([u32; 2], f32) {
+pub(super) fn pixel(scene: &Scene, u: &mut dyn UniformSource) -> ([u32; 2], f32) {
     let [cx, cy, cw, ch] = scene.film.crop;
     let pick = |u: f32, n: u32| ((u * n as f32) as u32).min(n - 1);
     let p = [cx + pick(u.next_f32(), cw), cy + pick(u.next_f32(), ch)];

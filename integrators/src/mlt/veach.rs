@@ -21,11 +21,10 @@ use aether_strategies::vertex::SceneVertex;
 use glam::DVec3;
 use smallvec::SmallVec;
 
-use super::{MltSettings, Sampler, UNLIMITED_VERTICES, run_chains, target};
+use super::{MltSettings, Sampler, UNLIMITED_VERTICES, crop_film, pick, run_chains, target};
 use crate::bdpt::{Bdpt, SeedPath};
 use crate::direct::DirectLighting;
 use crate::estimator::Splats;
-use crate::film::Film;
 use crate::render::{Rendered, Settings, render_with};
 
 thread_local! {
@@ -222,12 +221,7 @@ impl<'s> VeachMlt<'s> {
     /// Runs one BDPT sample from `stream` at a pixel it picks, and hands
     /// its paths to `use_seeds`.
     fn seed_sample<T>(&self, stream: &mut Pcg32, use_seeds: impl FnOnce(&[SeedPath]) -> T) -> T {
-        let [cx, cy, cw, ch] = self.scene.film.crop;
-        let pick = |u: f32, n: u32| ((u * n as f32) as u32).min(n - 1);
-        let pixel = [
-            cx + pick(stream.next_f32(), cw),
-            cy + pick(stream.next_f32(), ch),
-        ];
+        let (pixel, _) = super::primary::pixel(self.scene, stream);
         SEEDS.with_borrow_mut(|(seeds, splats)| {
             seeds.clear();
             splats.clear();
@@ -248,17 +242,9 @@ impl Sampler for VeachMlt<'_> {
 
     fn start(&self, _class: usize, stream: &mut Pcg32, rng: &mut Pcg32, state: &mut State) {
         let path = self.seed_sample(stream, |seeds| {
-            let total: f64 = seeds.iter().map(|s| self.seed_weight(s)).sum();
-            let mut target = f64::from(rng.next_f32()) * total;
-            let chosen = seeds.iter().find(|s| {
-                let w = self.seed_weight(s);
-                let hit = w > 0.0 && target < w;
-                target -= w;
-                hit
-            });
-            chosen
-                .or_else(|| seeds.iter().rfind(|s| self.seed_weight(s) > 0.0))
-                .map(|s| ChainPath::new(s.vertices.iter().copied()))
+            let weights = seeds.iter().map(|s| self.seed_weight(s));
+            let target = f64::from(rng.next_f32()) * weights.clone().sum::<f64>();
+            pick(weights, target).map(|i| ChainPath::new(seeds[i].vertices.iter().copied()))
         });
         state.path = path.unwrap_or_default();
         self.evaluate(state, None);
@@ -269,18 +255,8 @@ impl Sampler for VeachMlt<'_> {
         // Picking the mutation here, as the mixture's own code would, lets
         // the chain count how each fares; T is still the mixture's.
         let weights = mutations.weights(current.path.vertices());
-        let total: f64 = weights.iter().sum();
-        let mut u = f64::from(rng.next_f32()) * total;
-        let index = weights
-            .iter()
-            .position(|&w| {
-                let hit = w > 0.0 && u < w;
-                u -= w;
-                hit
-            })
-            .or_else(|| weights.iter().rposition(|&w| w > 0.0))
-            .unwrap_or(0);
-        let kind = Kind::ALL[index];
+        let target = f64::from(rng.next_f32()) * weights.iter().sum::<f64>();
+        let kind = Kind::ALL[pick(weights, target).unwrap_or(0)];
         let only = Only {
             mutations: &mutations,
             kind,
@@ -351,7 +327,6 @@ fn render_with_direct(
         ..settings.clone()
     };
     let chains = run_chains(sampler, scene, mlt, &rest, stop)?;
-    let (w, h) = (scene.film.width, scene.film.height);
     let image: Vec<[f64; 3]> = chains
         .film
         .image()
@@ -359,13 +334,8 @@ fn render_with_direct(
         .zip(lit.film.image())
         .map(|(a, b)| [0, 1, 2].map(|k| f64::from(a[k]) + f64::from(b[k])))
         .collect();
-    let [cx, cy, cw, ch] = scene.film.crop;
-    let in_crop = |i: usize| {
-        let (x, y) = (i as u32 % w, i as u32 / w);
-        (cx..cx + cw).contains(&x) && (cy..cy + ch).contains(&y)
-    };
     Ok(Rendered {
-        film: Film::from_image(w, h, &image, in_crop),
+        film: crop_film(scene, &image),
         seconds: chains.seconds + lit.seconds,
         samples: chains.samples,
         rays: chains.rays + lit.rays,
