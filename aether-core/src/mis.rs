@@ -465,6 +465,7 @@ fn counted<V>(densities: &[PathDensity], splits: &[Split<'_, V>]) -> SmallVec<[P
 /// path splatted to several pixels, whose camera-direction strategies
 /// differ by pixel. The other densities are evaluated once; each variant
 /// only rescales the techniques that sample vertex `at` from the camera.
+/// No variants (a splat that lands off the film) give no weights.
 ///
 /// # Panics
 /// If `at` is not below `camera.len() - 1`.
@@ -485,7 +486,7 @@ pub fn weights_of_split_variants<'s, V: Vertex>(
         "camera[{at}] repeats: it cannot vary"
     );
     let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
-    if !path.is_complete() || own >= splits.len() || at >= path.len() {
+    if variants.is_empty() || !path.is_complete() || own >= splits.len() || at >= path.len() {
         return variants.iter().map(|_| (0.0, zero)).collect();
     }
     let mut factor = |s: StrategyRef<'s, V>| {

@@ -329,6 +329,35 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         result
     }
 
+    /// Samples the appended strategies, then `strategy` again and again
+    /// until a step produces no vertex or the sequence holds `max`
+    /// vertices: a random walk, ended by Russian roulette, a miss or its
+    /// length.
+    ///
+    /// ```
+    /// use aether_core::testing::{Bounce, CameraPoint, LookDown, TestScene};
+    /// use aether_core::{Pcg32, RandomSequence};
+    ///
+    /// let scene = TestScene::open_box();
+    /// let (camera, look, bounce) = (CameraPoint::default(), LookDown::new(&scene), Bounce::new(&scene));
+    /// let mut walk = RandomSequence::new();
+    /// walk.append(&camera).append(&look).repeat(&bounce, 5, &mut Pcg32::new(7, 0));
+    /// // Stopped by its length, or by a bounce out of the open box.
+    /// assert!(walk.len() == 5 || !walk.is_complete());
+    /// ```
+    pub fn repeat(
+        &mut self,
+        strategy: &'s dyn DynStrategy<V>,
+        max: usize,
+        rng: &mut dyn UniformSource,
+    ) -> &mut Self {
+        self.sample(rng);
+        while self.is_complete() && self.len() < max {
+            self.append(strategy).sample(rng);
+        }
+        self
+    }
+
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
     pub fn append_sample(
         &mut self,
@@ -472,9 +501,11 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         s
     }
 
-    /// Removes every vertex and step, keeping the storage.
-    pub fn clear(&mut self) {
+    /// Removes every vertex and step, keeping the storage; returns the
+    /// sequence, to be refilled in place (`path.clear().extend_from(..)`).
+    pub fn clear(&mut self) -> &mut Self {
         self.truncate(0);
+        self
     }
 
     /// Keeps the first `len` vertices as a complete sequence, like

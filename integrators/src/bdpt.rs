@@ -81,8 +81,9 @@ pub struct Bdpt<'s> {
     lens: bool,
 }
 
-/// The strategies of one sample.
+/// The strategies of one sample, and the integrand they sample.
 struct Kit<'a, 's> {
+    f: Integrand<'a>,
     lens: CameraPosition<'a>,
     look: CameraDirection<'a>,
     scatter: BsdfSampling<'s>,
@@ -159,9 +160,11 @@ impl<'s> Bdpt<'s> {
         self.images.as_ref()
     }
 
-    fn kit<'a>(&'a self, lights: &'a Lights<'s>, pixel: [u32; 2]) -> Kit<'a, 's> {
-        let scene = self.scene;
-        Kit {
+    /// The strategies of a sample of `pixel`; none in a scene without lights.
+    fn kit(&self, pixel: [u32; 2]) -> Option<Kit<'_, 's>> {
+        let (scene, lights) = (self.scene, self.lights.as_ref()?);
+        Some(Kit {
+            f: Integrand::new(scene, &self.camera, lights),
             lens: self.camera.position(),
             look: self.camera.direction(scene, pixel),
             scatter: BsdfSampling::new(scene, Transport::Radiance, self.roulette),
@@ -169,7 +172,7 @@ impl<'s> Bdpt<'s> {
             leave: lights.direction(),
             gather: BsdfSampling::new(scene, Transport::Importance, self.roulette),
             direct: lights.direct(),
-        }
+        })
     }
 }
 
@@ -185,10 +188,9 @@ fn walk<'a>(
     rng: &mut Rng,
 ) -> Path<'a> {
     let mut path = RandomSequence::new();
-    path.append(first[0]).append(first[1]).sample(rng);
-    while path.is_complete() && path.len() < max {
-        path.append(next).sample(rng);
-    }
+    path.append(first[0])
+        .append(first[1])
+        .repeat(next, max, rng);
     path
 }
 
@@ -236,16 +238,13 @@ impl Bdpt<'_> {
         rng: &mut Rng,
         splats: &mut Splats,
     ) -> Vec3 {
-        let Some(lights) = self.lights.as_ref() else {
+        let Some(kit) = self.kit(pixel) else {
             return Vec3::ZERO;
         };
         if n < 2 || n > self.max_vertices || s > n || (s == 0 && !self.lens) {
             return Vec3::ZERO;
         }
-        let kit = &self.kit(lights, pixel);
-        let f = self.integrand(lights);
-        DENSITIES.with_borrow_mut(DensityCache::clear);
-        let t = n - s;
+        let (kit, t) = (&kit, n - s);
         let cam = match s {
             0 => RandomSequence::new(),
             1 => {
@@ -262,8 +261,8 @@ impl Bdpt<'_> {
         if cam.len() != s || (t >= 2 && light.len() != t) {
             return Vec3::ZERO;
         }
-        let eye = Subpath::of(f, End::Camera, cam.vertices());
-        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        let eye = Subpath::of(kit.f, End::Camera, cam.vertices());
+        let ends = (&light, &Subpath::of(kit.f, End::Light, light.vertices()));
         let mut run = Run::new(kit, pixel, rng, splats, None);
         let radiance = if s == 0 {
             self.reach_lens(&mut run, ends)
@@ -294,12 +293,10 @@ impl Bdpt<'_> {
         splats: &mut Splats,
         seeds: Option<&mut Vec<SeedPath>>,
     ) -> Vec3 {
-        let Some(lights) = self.lights.as_ref().filter(|_| self.max_vertices >= 2) else {
+        let Some(kit) = self.kit(pixel).filter(|_| self.max_vertices >= 2) else {
             return Vec3::ZERO;
         };
-        let kit = &self.kit(lights, pixel);
-        let (max, f) = (self.max_vertices, self.integrand(lights));
-        DENSITIES.with_borrow_mut(DensityCache::clear);
+        let (kit, max, f) = (&kit, self.max_vertices, kit.f);
         let cam = walk([&kit.lens, &kit.look], &kit.scatter, max, rng);
         // Light paths may reach a thin lens (s = 0) with the last vertex.
         let reach = max - usize::from(!self.lens);
@@ -307,11 +304,10 @@ impl Bdpt<'_> {
         let eye = Subpath::of(f, End::Camera, cam.vertices());
         let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
         let mut run = Run::new(kit, pixel, rng, splats, seeds);
-        let mut radiance = DVec3::ZERO;
+        let mut radiance = self.reach_lens(&mut run, ends);
         for s in 1..=cam.len() {
             radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
         }
-        radiance += self.reach_lens(&mut run, ends);
         // Portal segments for a share of the samples, each counting 1 / share.
         let share = self.portal.is_some() && run.rng.next_f32() < PORTAL_SHARE;
         let Some(portal) = self.portal.as_ref().filter(|_| share) else {
@@ -336,7 +332,8 @@ impl Bdpt<'_> {
     }
 }
 
-/// What the connections of one sample share.
+/// What the connections of one sample share (with the densities cached
+/// for them, which a new run forgets).
 struct Run<'r, 'a, 's> {
     kit: &'a Kit<'a, 's>,
     pixel: [u32; 2],
@@ -356,6 +353,7 @@ impl<'r, 'a, 's> Run<'r, 'a, 's> {
         splats: &'r mut Splats,
         seeds: Option<&'r mut Vec<SeedPath>>,
     ) -> Self {
+        DENSITIES.with_borrow_mut(DensityCache::clear);
         Run {
             kit,
             pixel,
@@ -384,8 +382,7 @@ impl<'s> Bdpt<'s> {
         let (mut radiance, open, only) = (DVec3::ZERO, side.connectible(n - 1), run.only);
         let all = 0..=lamp.len().max(1).min(self.max_vertices - n);
         for t in all.filter(|t| only.is_none_or(|o| o == *t)) {
-            run.path.clear();
-            run.path.extend_from(head, 0..n, false);
+            run.path.clear().extend_from(head, 0..n, false);
             let through = match t {
                 0 => side.emitted(n),
                 1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
@@ -439,15 +436,10 @@ impl<'s> Bdpt<'s> {
         run: &mut Run<'_, 'a, 's>,
         (light, lamp): (&Path<'a>, &Subpath<'_>),
     ) -> DVec3 {
-        if !light
-            .vertices()
-            .last()
-            .is_some_and(|v| v.site == Site::Lens)
-        {
+        if light.vertices().last().is_none_or(|v| v.site != Site::Lens) {
             return DVec3::ZERO;
         }
-        run.path.clear();
-        run.path.extend_from(light, 0..light.len(), true);
+        run.path.clear().extend_from(light, 0..light.len(), true);
         self.contribute(run, Split::Bdpt(0), lamp.product(light.len() - 1))
     }
 
@@ -485,10 +477,6 @@ impl<'s> Bdpt<'s> {
         }
     }
 
-    fn integrand<'a>(&'a self, lights: &'a Lights<'s>) -> Integrand<'a> {
-        Integrand::new(self.scene, &self.camera, lights)
-    }
-
     /// The MIS weights of `path` for the pixels of `looks`, the camera
     /// direction strategies of each, against every split of it, and its
     /// density under its own times the share of samples that use it (zero,
@@ -500,8 +488,7 @@ impl<'s> Bdpt<'s> {
         own: Split,
         path: &Path<'_>,
     ) -> SmallVec<[(f64, f64); 16]> {
-        let n = path.len();
-        let share = f64::from(PORTAL_SHARE);
+        let (n, share) = (path.len(), f64::from(PORTAL_SHARE));
         let portal = self.portal.as_ref().map(|p| (StrategyRef::Two(p), share));
         let (direct, splats) = (Some(one(&kit.direct)), self.splats);
         let splits = aether_core::Split::bidirectional(n, direct, portal, splats, self.lens);
@@ -509,11 +496,8 @@ impl<'s> Bdpt<'s> {
             Split::Bdpt(s) => (s, 1.0),
             Split::Portal(k) => (n + k, share),
         };
-        // No pixel (a splat off the film) leaves nothing to weigh.
-        let Some(&look) = looks.first() else {
-            return SmallVec::new();
-        };
-        let camera = [one(&kit.lens), look, one(&kit.scatter)];
+        // Each pixel's camera direction takes the place of `look` in turn.
+        let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
         let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
         let found = DENSITIES.with_borrow_mut(|cache| {
             let (h, c) = (self.heuristic, Some(cache));
