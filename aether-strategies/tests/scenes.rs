@@ -234,6 +234,21 @@ fn write_temp(name: &str, text: &str) -> PathBuf {
 }
 
 #[test]
+fn a_second_integrator_or_sensor_warns() {
+    let xml = "<scene><integrator type=\"path\"/>\n<sensor type=\"perspective\"/>\n<integrator type=\"bdpt\"/>\n<sensor type=\"perspective\"/></scene>";
+    let file = write_temp("second.xml", xml);
+    let scene = Scene::load(&file, &HashMap::new()).unwrap();
+    assert_eq!(scene.integrator.name, "path");
+    let messages: Vec<String> = scene.warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(messages.len(), 2, "{messages:?}");
+    let first = |line| format!("the scene's first <{line}> ({}:", file.display());
+    assert!(messages[0].contains(":4: warning: <sensor type=\"perspective\"> is ignored"));
+    assert!(messages[0].contains(&first("sensor")), "{messages:?}");
+    assert!(messages[1].contains(":3: warning: <integrator type=\"bdpt\"> is ignored"));
+    assert!(messages[1].contains(&first("integrator")), "{messages:?}");
+}
+
+#[test]
 fn unused_properties_warn_and_flip_normals_flips() {
     let xml = "<scene><sensor type=\"perspective\"><float name=\"fov\" value=\"40\"/><float name=\"fob\" value=\"3\"/></sensor>\n<shape type=\"rectangle\"><boolean name=\"flipNormals\" value=\"true\"/></shape></scene>";
     let scene = Scene::load(&write_temp("unused.xml", xml), &HashMap::new()).unwrap();

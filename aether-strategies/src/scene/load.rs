@@ -390,6 +390,25 @@ impl Scene {
             Some(i) => integrator(i)?,
             None => IntegratorSettings::default(),
         };
+        // Mitsuba reads one of each; later ones (often from an include)
+        // would otherwise pass unnoticed.
+        for (category, name) in [
+            (Category::Sensor, "sensor"),
+            (Category::Integrator, "integrator"),
+        ] {
+            let mut all = root.children_of(category);
+            let Some(first) = all.next() else { continue };
+            for extra in all {
+                loader.warnings.push(Warning {
+                    location: extra.location.clone(),
+                    message: format!(
+                        "{} is ignored: the scene's first <{name}> ({}) is used",
+                        extra.describe(),
+                        first.location
+                    ),
+                });
+            }
+        }
         // Only the objects the scene uses: declared-but-unreferenced BSDFs
         // and textures are not reported.
         for child in root.children.iter().filter(|c| {
