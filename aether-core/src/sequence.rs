@@ -36,13 +36,36 @@ pub(crate) fn fresh_id() -> u64 {
     })
 }
 
+/// A strategy's type, by its name. One type's name may sit at several
+/// addresses (a copy per codegen unit that instantiates it): compared by
+/// address alone, the density recorded while sampling was missed whenever
+/// the path was evaluated from another unit, and evaluated again, from
+/// vertices rounded since. Names compare by content after a pointer check,
+/// and hash by length.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Kind(&'static str);
+
+impl PartialEq for Kind {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self.0, other.0) || self.0 == other.0
+    }
+}
+
+impl Eq for Kind {}
+
+impl std::hash::Hash for Kind {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.0.len().hash(state);
+    }
+}
+
 /// Identifies one density factor: a strategy evaluated for given target
 /// vertices with given conditioning vertices at a given depth. Equal keys
 /// have equal densities, whichever candidate path they occur in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) struct FactorKey {
     strategy: usize,
-    kind: usize,
+    kind: Kind,
     /// The strategy's depth class of the prefix length.
     depth: u32,
     instance: u64,
@@ -53,7 +76,7 @@ pub(crate) struct FactorKey {
 impl FactorKey {
     pub(crate) const EMPTY: FactorKey = FactorKey {
         strategy: 0,
-        kind: 0,
+        kind: Kind(""),
         depth: 0,
         instance: 0,
         targets: [0; 2],
@@ -72,7 +95,7 @@ impl FactorKey {
         let mut h = 0xcbf2_9ce4_8422_2325u64;
         for w in [
             self.strategy as u64,
-            self.kind as u64,
+            self.kind.0.len() as u64,
             u64::from(self.depth),
             self.instance,
             self.targets[0],
@@ -134,7 +157,7 @@ pub(crate) struct Span<'s, V> {
     pub(crate) fixed_id: u64,
     /// The strategy's memory and identity, read once rather than per factor.
     memory: usize,
-    identity: (usize, usize, u64),
+    identity: (usize, Kind, u64),
 }
 
 impl<'s, V> Span<'s, V> {
@@ -146,11 +169,8 @@ impl<'s, V> Span<'s, V> {
         fixed_id: u64,
     ) -> Self {
         let (memory, identity) = match strategy {
-            Some(s) => (
-                s.memory(),
-                (s.address(), s.name().as_ptr() as usize, s.instance()),
-            ),
-            None => (0, (0, 0, 0)),
+            Some(s) => (s.memory(), (s.address(), Kind(s.name()), s.instance())),
+            None => (0, (0, Kind(""), 0)),
         };
         Span {
             start,
@@ -769,5 +789,24 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         self.spans().fold(PathDensity::ONE, |p, span| {
             p.times(path.factor(&span, None))
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{FactorKey, Kind};
+
+    #[test]
+    fn a_type_name_copied_elsewhere_is_the_same_kind() {
+        let name = std::any::type_name::<FactorKey>();
+        let copy: &'static str = Box::leak(name.to_string().into_boxed_str());
+        assert!(!std::ptr::eq(name, copy));
+        let key = |kind| FactorKey {
+            kind,
+            ..FactorKey::test(7)
+        };
+        assert_eq!(key(Kind(name)), key(Kind(copy)));
+        assert_eq!(key(Kind(name)).hash64(), key(Kind(copy)).hash64());
+        assert_ne!(key(Kind(name)), key(Kind("another strategy")));
     }
 }
