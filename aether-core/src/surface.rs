@@ -47,6 +47,26 @@ impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a
             scene,
         }
     }
+
+    /// The origin of the ray that reaches `v`, as the caster starts it
+    /// (past `from`'s rounding error), so that densities describe the rays
+    /// cast: on edges a few offsets long, and through near-specular lobes,
+    /// the difference matters. The caster's origin may depend on the ray's
+    /// direction (the side of the surface it leaves by); the origin is the
+    /// one consistent with the direction from it to `v`. None if no ray
+    /// from an origin the caster uses reaches `v` that way (a target in the
+    /// tangent plane, between the offsets).
+    fn origin_toward(&self, v: &V) -> Option<Vec3> {
+        let p = self.from.position();
+        let toward = |o: Vec3| match v.geometry() {
+            Geometry::AtInfinity { direction } => direction,
+            _ => v.position() - o,
+        };
+        let first = self.scene.origin(self.from, toward(p));
+        [first, self.scene.origin(self.from, toward(first))]
+            .into_iter()
+            .find(|&o| self.scene.origin(self.from, toward(o)) == o)
+    }
 }
 
 /// Converts a solid-angle density at `from` into the measure of vertex `v`.
@@ -85,7 +105,8 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution
         let w = self.directions.sample(u)?;
         match self.scene.cast(self.from, w.value) {
             Some(hit) => {
-                let (_, factor) = direction_to(self.from.position(), &hit)?;
+                let origin = self.scene.origin(self.from, w.value);
+                let (_, factor) = direction_to(origin, &hit)?;
                 let density = w.density.convert(factor, measure_of(&hit));
                 Some(Sample::new(Step::Vertex(hit), density))
             }
@@ -99,14 +120,14 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution
         let Step::Vertex(v) = v else {
             return Density::zero(Measure::Area);
         };
-        match direction_to(self.from.position(), v) {
+        match self.origin_toward(v).and_then(|o| direction_to(o, v)) {
             Some((dir, factor)) => self.directions.density(&dir).convert(factor, measure_of(v)),
             None => Density::zero(Measure::Area),
         }
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
         let Step::Vertex(v) = v else { return None };
-        let (dir, _) = direction_to(self.from.position(), v)?;
+        let (dir, _) = direction_to(self.origin_toward(v)?, v)?;
         self.directions.invert(&dir)
     }
     fn has_overlapping_branches(&self) -> bool {

@@ -38,10 +38,30 @@ pub trait RayCaster<V> {
     /// or `None` if it escapes into nothing. Offsetting the origin to avoid
     /// self-intersection is the caster's job.
     fn cast(&self, from: &V, direction: Vec3) -> Option<V>;
+
+    /// Where a ray leaving `from` toward the side of `toward` (a direction,
+    /// not necessarily unit) starts: `from`'s position, or that position
+    /// moved past its rounding error by a caster that offsets origins.
+    /// Densities measure edges from here, so that they describe the rays
+    /// the caster actually casts (on edges a few offsets long, the
+    /// difference matters).
+    fn origin(&self, from: &V, toward: Vec3) -> Vec3
+    where
+        V: Vertex,
+    {
+        let _ = toward;
+        from.position()
+    }
 }
 
 impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
     fn cast(&self, from: &V, direction: Vec3) -> Option<V> {
         (**self).cast(from, direction)
+    }
+    fn origin(&self, from: &V, toward: Vec3) -> Vec3
+    where
+        V: Vertex,
+    {
+        (**self).origin(from, toward)
     }
 }

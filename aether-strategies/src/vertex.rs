@@ -198,13 +198,17 @@ impl Scene {
 /// isolated points from the point itself. A ray that escapes meets the
 /// environment if the scene has one.
 impl RayCaster<SceneVertex> for Scene {
-    fn cast(&self, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
-        let origin = match from.site {
+    fn origin(&self, from: &SceneVertex, toward: Vec3) -> Vec3 {
+        match from.site {
             Site::Surface { .. } => {
-                offset_origin(from.position, from.error, from.geometric_normal, direction)
+                offset_origin(from.position, from.error, from.geometric_normal, toward)
             }
             _ => from.position,
-        };
+        }
+    }
+
+    fn cast(&self, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
+        let origin = self.origin(from, direction);
         let hit = self.geometry.intersect(origin, direction, f32::INFINITY);
         // A thin lens's aperture is a surface: light paths reach the camera
         // on it, and it stops what crosses it (rays leaving it cannot).

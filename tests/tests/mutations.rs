@@ -28,11 +28,12 @@ use integrators::mlt::veach::VeachMlt;
 const PAIRS: usize = 150;
 
 /// Largest relative difference expected between T(y | x) in density mode
-/// and the density recorded while sampling y. Rays leave surfaces from
-/// origins offset past their rounding error, and density mode sees the
-/// direction between the vertices instead: through the nearly specular
-/// glass sphere of cbox-sphere (GGX α = 0.001, a sphere's error bound of
-/// ~1e-4 of its size) that changes the density by up to a factor of a few.
+/// and the density recorded while sampling y. Density mode measures an
+/// edge from the origin the ray caster starts it at; what it cannot undo
+/// is the rounding of the vertex the ray found: on a short edge through
+/// the nearly specular glass sphere of cbox-sphere (GGX α = 0.001, a
+/// sphere's error bound of ~1e-4 of its size) that turns the measured
+/// direction enough to change the density by up to a factor of a few.
 /// The multi-chain perturbation's turns of 1e-4 rad resolve to about
 /// 0.2 % ([`MutationSettings::MIN_ANGLE`]). At most one pair in twenty may
 /// differ by more than `SLACK`, and the median by more than 1 %.
