@@ -103,6 +103,23 @@ impl Film {
             .collect()
     }
 
+    /// Adds the sum of `samples` radiance values to pixel (x, y), after
+    /// those it already holds (a render in rounds).
+    pub fn add_pixel(&mut self, x: u32, y: u32, sum: [f64; 3], samples: u32, dropped: u64) {
+        let i = (y * self.width + x) as usize;
+        for (total, s) in self.sums[i].iter_mut().zip(sum) {
+            *total += s;
+        }
+        self.counts[i] += samples;
+        self.dropped.fetch_add(dropped, Ordering::Relaxed);
+    }
+
+    /// Camera samples taken over all pixels.
+    #[must_use]
+    pub fn samples(&self) -> u64 {
+        self.counts.iter().map(|&n| u64::from(n)).sum()
+    }
+
     /// Pixels rendered with at least one sample.
     #[must_use]
     pub fn rendered_pixels(&self) -> usize {

@@ -258,15 +258,28 @@ fn run(args: RenderArgs) -> Result<(), String> {
     };
     let image = r.film.image();
     let (w, h) = (scene.film.width, scene.film.height);
-    write_exr(&args.output, w, h, &image, scene.film.spp, r.seconds)?;
+    // Cut short, pixels hold what time allowed: the file says the mean.
+    let pixels = r.film.rendered_pixels().max(1) as u64;
+    let spp = match r.complete {
+        true => scene.film.spp,
+        false => u32::try_from(r.samples / pixels).unwrap_or(u32::MAX),
+    };
+    write_exr(&args.output, w, h, &image, spp, r.seconds)?;
     let png = args.output.with_extension("png");
     write_png(&png, w, h, &image, args.exposure)?;
     if !r.complete {
         eprintln!(
-            "stopped early: {} of {} pixels rendered",
+            "stopped early: {} of {} pixels rendered, {:.1} samples per pixel on average (of {} asked)",
             r.film.rendered_pixels(),
-            w as usize * h as usize
+            w as usize * h as usize,
+            r.samples as f64 / pixels as f64,
+            scene.film.spp
         );
+        if r.samples == 0 && Variant::named(&scene.integrator.name).is_some() {
+            eprintln!(
+                "the time limit ran out before the chains started: the bootstrap took it (see --bootstrap)"
+            );
+        }
     }
     if r.film.dropped() > 0 {
         eprintln!("{} NaN or infinite samples were dropped", r.film.dropped());

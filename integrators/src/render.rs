@@ -39,7 +39,11 @@ pub struct Settings {
     pub spp: u32,
     /// Seed of every pixel's random stream.
     pub seed: u64,
-    /// Stop starting tiles after this long.
+    /// Stop after this long, keeping what was rendered. Camera-path
+    /// integrators then render in rounds of growing samples per pixel, each
+    /// round from its own seed, so that every pixel ends with about as many
+    /// samples as time allowed (tiles not started when time runs out are
+    /// skipped); Metropolis methods stop their chains.
     pub time_limit: Option<Duration>,
     /// Worker threads (`None`: all cores).
     pub threads: Option<usize>,
@@ -143,7 +147,8 @@ pub fn render(scene: &Scene, settings: &Settings, stop: &AtomicBool) -> Result<R
 
 /// Renders `scene` with `estimator`: camera paths by tiles, each pixel from
 /// its own random stream; light-path contributions go to the film's splat
-/// buffer, whose sum is divided by the number of samples taken.
+/// buffer, whose sum is divided by the number of samples taken. With a
+/// time limit the samples come in rounds ([`Settings::time_limit`]).
 ///
 /// # Errors
 /// If the worker threads cannot start.
@@ -156,45 +161,93 @@ pub fn render_with(
     let (w, h) = (scene.film.width, scene.film.height);
     let film = Mutex::new(Film::new(w, h));
     let splats = SplatBuffer::new(w, h);
-    let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
-        let mut scratch = SCRATCH.take();
-        let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
-        for _ in 0..settings.spp {
-            let c = estimator.sample([x, y], rng, &mut scratch).to_array();
-            if is_valid(c) {
-                for k in 0..3 {
-                    sum[k] += f64::from(c[k]);
+    let start = Instant::now();
+    let (mut done, mut rays, mut ray_seconds, mut complete) = (0u32, 0, 0.0, true);
+    for round in 0u64.. {
+        let Some(spp) = round_size(settings, done, start.elapsed()) else {
+            break;
+        };
+        let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
+            let mut scratch = SCRATCH.take();
+            let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
+            for _ in 0..spp {
+                let c = estimator.sample([x, y], rng, &mut scratch).to_array();
+                if is_valid(c) {
+                    for k in 0..3 {
+                        sum[k] += f64::from(c[k]);
+                    }
+                } else {
+                    dropped += 1;
                 }
-            } else {
-                dropped += 1;
+                for (p, c) in scratch.drain(..) {
+                    splats.splat(p, c.to_array());
+                }
             }
-            for (p, c) in scratch.drain(..) {
-                splats.splat(p, c.to_array());
+            SCRATCH.set(scratch);
+            (sum, dropped)
+        };
+        let store = |tile: Tile<([f64; 3], u64)>| {
+            let mut film = film
+                .lock()
+                .expect("no thread panics while holding the film");
+            for ([x, y], (sum, dropped)) in tile {
+                film.add_pixel(x, y, sum, spp, dropped);
             }
+        };
+        let this = Settings {
+            spp,
+            seed: round_seed(settings.seed, round),
+            time_limit: settings
+                .time_limit
+                .map(|t| t.saturating_sub(start.elapsed())),
+            ..settings.clone()
+        };
+        let run = render_tiles(scene, &this, stop, pixel, store)?;
+        (done, rays, ray_seconds) = (done + spp, rays + run.rays, ray_seconds + run.ray_seconds);
+        if !run.complete {
+            complete = false;
+            break;
         }
-        SCRATCH.set(scratch);
-        (sum, dropped)
-    };
-    let store = |tile: Tile<([f64; 3], u64)>| {
-        let mut film = film
-            .lock()
-            .expect("no thread panics while holding the film");
-        for ([x, y], (sum, dropped)) in tile {
-            film.set_pixel(x, y, sum, settings.spp, dropped);
-        }
-    };
-    let run = render_tiles(scene, settings, stop, pixel, store)?;
+    }
     let mut film = film.into_inner().expect("no thread panicked");
-    let samples = film.rendered_pixels() as u64 * u64::from(settings.spp);
+    let samples = film.samples();
     film.add_splats(&splats, samples);
     Ok(Rendered {
         film,
-        seconds: run.seconds,
+        seconds: start.elapsed().as_secs_f64(),
         samples,
-        rays: run.rays,
-        ray_seconds: run.ray_seconds,
-        complete: run.complete,
+        rays,
+        ray_seconds,
+        complete,
     })
+}
+
+/// The samples per pixel of the next round of a render that has taken
+/// `done` of `settings.spp` in `elapsed`, or none when it is finished.
+/// Without a time limit, one round takes them all. With one, rounds grow
+/// from one sample per pixel to about half the time left, so that when
+/// time runs out every pixel has about as many samples as any other (and
+/// a huge `spp` means "until the time limit").
+fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
+    let left = settings.spp - done;
+    match settings.time_limit {
+        _ if left == 0 => None,
+        None => Some(left),
+        Some(limit) if elapsed >= limit => None,
+        Some(_) if done == 0 => Some(1),
+        Some(limit) => {
+            let per_sample = elapsed.as_secs_f64() / f64::from(done);
+            let fits = (limit - elapsed).as_secs_f64() / per_sample / 2.0;
+            Some((fits as u32).clamp(1, left))
+        }
+    }
+}
+
+/// The seed of round `round` of a render: the render's own for the first
+/// (so a render without a time limit is one round with the seed asked
+/// for), distant and distinct ones after it.
+fn round_seed(seed: u64, round: u64) -> u64 {
+    seed.wrapping_add(round.wrapping_mul(0x9e37_79b9_7f4a_7c15))
 }
 
 /// A finished tile: each pixel with what was computed for it.
@@ -356,9 +409,7 @@ pub fn repeat_passes(
     while passes == 0 || (start.elapsed() < budget && !stop.load(Ordering::Relaxed)) {
         pass(&Settings {
             // Distant, distinct seeds: each pass draws from fresh streams.
-            seed: settings
-                .seed
-                .wrapping_add(u64::from(passes).wrapping_mul(0x9e37_79b9_7f4a_7c15)),
+            seed: round_seed(settings.seed, u64::from(passes)),
             time_limit: None,
             progress: false,
             ..settings.clone()
@@ -431,5 +482,39 @@ mod tests {
         let r = render(&scene, &s, &stop).unwrap();
         assert!(!r.complete);
         assert_eq!(r.film.rendered_pixels(), 0);
+    }
+
+    #[test]
+    fn a_time_limit_renders_every_pixel_in_rounds() {
+        let scene = cornell_box(32, 32, 1);
+        let stop = AtomicBool::new(false);
+        // Far more samples than half a second allows: the render stops on
+        // time, with every pixel at about the same count.
+        let s = Settings {
+            time_limit: Some(Duration::from_millis(500)),
+            ..Settings::new(u32::MAX, 1)
+        };
+        let r = render(&scene, &s, &stop).unwrap();
+        assert!(!r.complete);
+        assert_eq!(r.film.rendered_pixels(), 32 * 32);
+        assert_eq!(r.samples, r.film.samples());
+        assert!(r.samples >= 2 * 32 * 32, "{} samples", r.samples);
+        assert!(r.film.image().iter().flatten().all(|v| v.is_finite()));
+        // The first round keeps the seed asked for; later ones get their own.
+        assert_eq!(round_seed(7, 0), 7);
+        assert_ne!(round_seed(7, 1), 7);
+        assert_eq!(
+            round_size(&Settings::new(10, 0), 0, Duration::ZERO),
+            Some(10)
+        );
+        let timed = Settings {
+            time_limit: Some(Duration::from_secs(10)),
+            ..Settings::new(100, 0)
+        };
+        assert_eq!(round_size(&timed, 0, Duration::ZERO), Some(1));
+        // One sample took 1 s: half of the 9 s left is 4 samples.
+        assert_eq!(round_size(&timed, 1, Duration::from_secs(1)), Some(4));
+        assert_eq!(round_size(&timed, 100, Duration::from_secs(1)), None);
+        assert_eq!(round_size(&timed, 5, Duration::from_secs(10)), None);
     }
 }
