@@ -29,20 +29,26 @@ impl RayCaster<TestVertex> for Slab {
     }
 }
 
+/// Edges of ten offsets: measured from the vertex, densities would be off
+/// by about 20 %.
+const SLAB: Slab = Slab {
+    height: 0.01,
+    offset: 0.001,
+};
+
+/// A cosine bounce off the floor at the origin.
+fn bounce(from: &TestVertex) -> impl Distribution<Value = Step<TestVertex>> + '_ {
+    Intersect::new(
+        from,
+        InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere),
+        &SLAB,
+    )
+}
+
 #[test]
 fn densities_of_short_edges_describe_the_rays_cast() {
-    // Edges of ten offsets: measured from the vertex, densities would be
-    // off by about 20 %.
-    let slab = Slab {
-        height: 0.01,
-        offset: 0.001,
-    };
     let from = TestVertex::on_surface(Vec3::ZERO, Vec3::Z);
-    let bounce = Intersect::new(
-        &from,
-        InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere),
-        &slab,
-    );
+    let bounce = bounce(&from);
     let mut rng = Pcg32::new(3, 0);
     let mut worst = 0.0f64;
     for _ in 0..1000 {
@@ -62,16 +68,8 @@ fn densities_of_short_edges_describe_the_rays_cast() {
 
 #[test]
 fn targets_no_offset_ray_reaches_have_no_density() {
-    let slab = Slab {
-        height: 0.01,
-        offset: 0.001,
-    };
     let from = TestVertex::on_surface(Vec3::ZERO, Vec3::Z);
-    let bounce = Intersect::new(
-        &from,
-        InFrame::new(Frame::from_normal(Vec3::Z), CosineHemisphere),
-        &slab,
-    );
+    let bounce = bounce(&from);
     // In the tangent plane: from the upper origin it lies below, from the
     // lower one above; neither ray leaves by the side it would need.
     let flat = TestVertex::on_surface(Vec3::new(1.0, 0.0, 0.0), Vec3::Z);
