@@ -13,7 +13,9 @@ use crate::vertex::{Geometry, RayCaster, Vertex};
 /// direction and returns the vertex it hits.
 ///
 /// Density: the direction's solid-angle density times |cos θₓ| / r² at the
-/// hit point, in area measure (Dirac components included). In density mode
+/// hit point, in area measure (Dirac components included), the direction
+/// and r measured from where the caster starts the ray
+/// ([`RayCaster::origin`]). In density mode
 /// the given vertex is used instead of tracing: a vertex at infinity keeps
 /// its solid-angle density, and an isolated point (a point light, a
 /// pinhole) has density zero, since no ray can hit it.
