@@ -23,7 +23,7 @@
 use std::cell::Cell;
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use aether_core::{
     DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, densities_of_split,
@@ -44,7 +44,9 @@ use crate::film::Film;
 use crate::film::is_valid;
 use crate::path::techniques;
 use crate::poisson::{Norm, reconstruct};
-use crate::render::{Rendered, Settings, Tile, render_tiles, repeat_passes};
+use crate::render::{
+    Rendered, Settings, Tile, render_tiles, repeat_passes, round_settings, round_size,
+};
 
 thread_local! {
     /// Density factors of one sample's base and offset paths: the offsets
@@ -477,32 +479,65 @@ pub fn render_gradients(
     }
     let sums: Mutex<Vec<Option<PairSums>>> = Mutex::new(vec![None; w as usize * h as usize]);
     let dropped = Mutex::new(0u64);
-    let pixel = |p: [u32; 2], rng: &mut Pcg32| {
-        let (mut sum, mut lost) = (PairSums::default(), 0u64);
-        for _ in 0..settings.spp {
-            let s = tracer.sample(p, rng);
-            if s.is_valid() {
-                sum.add(&s);
-            } else {
-                lost += 1;
+    let start = Instant::now();
+    let (mut done, mut rays, mut ray_seconds, mut complete) = (0u32, 0, 0.0, true);
+    // A time limit renders in rounds, as `render_with` does; a pair's
+    // estimates need both pixels at the same count, so a round that time
+    // cuts short is left out.
+    for round in 0u64.. {
+        let Some(spp) = round_size(settings, done, start.elapsed()) else {
+            complete = done == settings.spp;
+            break;
+        };
+        let this_round: Mutex<Vec<Option<PairSums>>> =
+            Mutex::new(vec![None; w as usize * h as usize]);
+        let pixel = |p: [u32; 2], rng: &mut Pcg32| {
+            let (mut sum, mut lost) = (PairSums::default(), 0u64);
+            for _ in 0..spp {
+                let s = tracer.sample(p, rng);
+                if s.is_valid() {
+                    sum.add(&s);
+                } else {
+                    lost += 1;
+                }
+            }
+            (sum, lost)
+        };
+        let store = |tile: Tile<(PairSums, u64)>| {
+            let mut sums = this_round
+                .lock()
+                .expect("no thread panics while holding the sums");
+            let mut lost = 0;
+            for ([x, y], (s, l)) in tile {
+                sums[(y * w + x) as usize] = Some(s);
+                lost += l;
+            }
+            *dropped.lock().expect("no thread panics while counting") += lost;
+        };
+        let this = round_settings(settings, round, spp, start);
+        let run = render_tiles(scene, &this, stop, pixel, store)?;
+        (rays, ray_seconds) = (rays + run.rays, ray_seconds + run.ray_seconds);
+        let this_round = this_round.into_inner().expect("no thread panicked");
+        if !run.complete && done > 0 {
+            complete = false;
+            break;
+        }
+        let mut sums = sums.lock().expect("no thread panicked");
+        for (total, s) in sums.iter_mut().zip(this_round) {
+            match (total.as_mut(), s) {
+                (Some(t), Some(s)) => t.add(&s),
+                (None, s) => *total = s,
+                (Some(_), None) => {}
             }
         }
-        (sum, lost)
-    };
-    let store = |tile: Tile<(PairSums, u64)>| {
-        let mut sums = sums
-            .lock()
-            .expect("no thread panics while holding the sums");
-        let mut lost = 0;
-        for ([x, y], (s, l)) in tile {
-            sums[(y * w + x) as usize] = Some(s);
-            lost += l;
+        done += spp;
+        if !run.complete {
+            complete = false;
+            break;
         }
-        *dropped.lock().expect("no thread panics while counting") += lost;
-    };
-    let run = render_tiles(scene, settings, stop, pixel, store)?;
+    }
     let sums = sums.into_inner().expect("no thread panicked");
-    let spp = f64::from(settings.spp);
+    let spp = f64::from(done.max(1));
     let at = |x: i64, y: i64| -> Option<&PairSums> {
         if x < 0 || y < 0 || x >= i64::from(w) || y >= i64::from(h) {
             return None;
@@ -515,12 +550,12 @@ pub fn render_gradients(
         primal: vec![[0.0; 3]; sums.len()],
         dx: vec![[0.0; 3]; sums.len()],
         dy: vec![[0.0; 3]; sums.len()],
-        seconds: run.seconds,
-        samples: sums.iter().flatten().count() as u64 * u64::from(settings.spp),
-        rays: run.rays,
-        ray_seconds: run.ray_seconds,
+        seconds: start.elapsed().as_secs_f64(),
+        samples: sums.iter().flatten().count() as u64 * u64::from(done),
+        rays,
+        ray_seconds,
         dropped: dropped.into_inner().expect("no thread panicked"),
-        complete: run.complete,
+        complete,
         rendered: sums.iter().map(Option::is_some).collect(),
     };
     let rgb = |v: DVec3| (v / spp).as_vec3().to_array();
@@ -584,4 +619,27 @@ pub fn render_gradient_passes(
     }
     g.seconds = seconds;
     Ok((g, passes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cornell::cornell_box;
+
+    #[test]
+    fn a_time_limit_gives_every_pixel_the_same_count() {
+        let scene = cornell_box(16, 16, 1);
+        let tracer = GradientPathTracer::new(&scene).unwrap();
+        let settings = Settings {
+            time_limit: Some(Duration::from_millis(300)),
+            ..Settings::new(u32::MAX, 1)
+        };
+        let g = render_gradients(&scene, &tracer, &settings, &AtomicBool::new(false)).unwrap();
+        assert!(!g.complete);
+        assert!(g.rendered.iter().all(|&r| r));
+        // Whole rounds only: a pair's two pixels have the same count.
+        assert_eq!(g.samples % (16 * 16), 0);
+        assert!(g.samples >= 2 * 16 * 16, "{} samples", g.samples);
+        assert!(g.primal.iter().flatten().all(|v| v.is_finite()));
+    }
 }

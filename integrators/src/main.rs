@@ -307,7 +307,18 @@ fn run_gradients(
     let tracer = GradientPathTracer::new(scene)?;
     let g = render_gradients(scene, &tracer, settings, stop)?;
     let image = g.reconstruct(&scene.integrator.gradient);
-    let (w, h, spp) = (g.width, g.height, settings.spp);
+    let rendered = g.rendered.iter().filter(|&&r| r).count().max(1) as u64;
+    // Cut short, every rendered pixel holds what time allowed.
+    let spp = u32::try_from(g.samples / rendered).unwrap_or(u32::MAX);
+    let (w, h) = (g.width, g.height);
+    if !g.complete {
+        eprintln!(
+            "stopped early: {} of {} pixels rendered, {spp} samples per pixel (of {} asked)",
+            g.rendered.iter().filter(|&&r| r).count(),
+            w as usize * h as usize,
+            settings.spp
+        );
+    }
     let beside = |suffix: &str| {
         let stem = output
             .file_stem()

@@ -39,11 +39,13 @@ pub struct Settings {
     pub spp: u32,
     /// Seed of every pixel's random stream.
     pub seed: u64,
-    /// Stop after this long, keeping what was rendered. Camera-path
+    /// Stop after this long, keeping what was rendered. The tiled
     /// integrators then render in rounds of growing samples per pixel, each
     /// round from its own seed, so that every pixel ends with about as many
     /// samples as time allowed (tiles not started when time runs out are
-    /// skipped); Metropolis methods stop their chains.
+    /// skipped; gradient-domain tracing leaves out a round cut short, as
+    /// its pairs of pixels need equal counts); Metropolis methods stop
+    /// their chains.
     pub time_limit: Option<Duration>,
     /// Worker threads (`None`: all cores).
     pub threads: Option<usize>,
@@ -165,6 +167,7 @@ pub fn render_with(
     let (mut done, mut rays, mut ray_seconds, mut complete) = (0u32, 0, 0.0, true);
     for round in 0u64.. {
         let Some(spp) = round_size(settings, done, start.elapsed()) else {
+            complete = done == settings.spp;
             break;
         };
         let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
@@ -194,14 +197,7 @@ pub fn render_with(
                 film.add_pixel(x, y, sum, spp, dropped);
             }
         };
-        let this = Settings {
-            spp,
-            seed: round_seed(settings.seed, round),
-            time_limit: settings
-                .time_limit
-                .map(|t| t.saturating_sub(start.elapsed())),
-            ..settings.clone()
-        };
+        let this = round_settings(settings, round, spp, start);
         let run = render_tiles(scene, &this, stop, pixel, store)?;
         (done, rays, ray_seconds) = (done + spp, rays + run.rays, ray_seconds + run.ray_seconds);
         if !run.complete {
@@ -228,7 +224,7 @@ pub fn render_with(
 /// from one sample per pixel to about half the time left, so that when
 /// time runs out every pixel has about as many samples as any other (and
 /// a huge `spp` means "until the time limit").
-fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
+pub(crate) fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
     let left = settings.spp - done;
     match settings.time_limit {
         _ if left == 0 => None,
@@ -240,6 +236,24 @@ fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> 
             let fits = (limit - elapsed).as_secs_f64() / per_sample / 2.0;
             Some((fits as u32).clamp(1, left))
         }
+    }
+}
+
+/// The settings of round `round` of `spp` samples per pixel, of a render
+/// that started at `start`: its own seed, and the time left.
+pub(crate) fn round_settings(
+    settings: &Settings,
+    round: u64,
+    spp: u32,
+    start: Instant,
+) -> Settings {
+    Settings {
+        spp,
+        seed: round_seed(settings.seed, round),
+        time_limit: settings
+            .time_limit
+            .map(|t| t.saturating_sub(start.elapsed())),
+        ..settings.clone()
     }
 }
 
