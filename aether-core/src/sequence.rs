@@ -65,12 +65,13 @@ impl std::hash::Hash for Kind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) struct FactorKey {
     strategy: usize,
-    kind: Kind,
     /// The strategy's depth class of the prefix length.
     depth: u32,
     instance: u64,
     targets: [u64; 2],
     cond: [u64; 2],
+    /// Last, so that equality compares names only when all else matches.
+    kind: Kind,
 }
 
 impl FactorKey {
