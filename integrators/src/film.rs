@@ -33,15 +33,6 @@ impl Film {
         }
     }
 
-    /// Records the mean of `samples` radiance values for pixel (x, y);
-    /// non-finite or negative components drop their sample, which is counted.
-    pub fn set_pixel(&mut self, x: u32, y: u32, sum: [f64; 3], samples: u32, dropped: u64) {
-        let i = (y * self.width + x) as usize;
-        self.sums[i] = sum;
-        self.counts[i] = samples;
-        self.dropped.fetch_add(dropped, Ordering::Relaxed);
-    }
-
     /// A film that holds `image` (row by row) at the pixels for which
     /// `rendered` holds, for integrators that make their image themselves.
     #[must_use]
@@ -54,7 +45,7 @@ impl Film {
         let mut film = Film::new(width, height);
         for (i, c) in image.iter().enumerate() {
             if rendered(i) {
-                film.set_pixel(i as u32 % width, i as u32 / width, *c, 1, 0);
+                film.add_pixel(i as u32 % width, i as u32 / width, *c, 1, 0);
             }
         }
         film
@@ -104,7 +95,8 @@ impl Film {
     }
 
     /// Adds the sum of `samples` radiance values to pixel (x, y), after
-    /// those it already holds (a render in rounds).
+    /// those it already holds (a render in rounds), and counts `dropped`
+    /// samples that never reached it (non-finite or negative).
     pub fn add_pixel(&mut self, x: u32, y: u32, sum: [f64; 3], samples: u32, dropped: u64) {
         let i = (y * self.width + x) as usize;
         for (total, s) in self.sums[i].iter_mut().zip(sum) {

@@ -23,7 +23,7 @@
 use std::cell::Cell;
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use aether_core::{
     DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, densities_of_split,
@@ -44,9 +44,7 @@ use crate::film::Film;
 use crate::film::is_valid;
 use crate::path::techniques;
 use crate::poisson::{Norm, reconstruct};
-use crate::render::{
-    Rendered, Settings, Tile, render_tiles, repeat_passes, round_settings, round_size,
-};
+use crate::render::{Rendered, Settings, Tile, render_rounds, render_tiles, repeat_passes};
 
 thread_local! {
     /// Density factors of one sample's base and offset paths: the offsets
@@ -477,23 +475,16 @@ pub fn render_gradients(
     if u64::from(cw) * u64::from(ch) < 2 {
         return Err("gradient-domain rendering needs at least two pixels".to_string());
     }
-    let sums: Mutex<Vec<Option<PairSums>>> = Mutex::new(vec![None; w as usize * h as usize]);
+    let mut sums: Vec<Option<PairSums>> = vec![None; w as usize * h as usize];
     let dropped = Mutex::new(0u64);
-    let start = Instant::now();
-    let (mut done, mut rays, mut ray_seconds, mut complete) = (0u32, 0, 0.0, true);
-    // A time limit renders in rounds, as `render_with` does; a pair's
-    // estimates need both pixels at the same count, so a round that time
-    // cuts short is left out.
-    for round in 0u64.. {
-        let Some(spp) = round_size(settings, done, start.elapsed()) else {
-            complete = done == settings.spp;
-            break;
-        };
+    // A pair's estimates need both pixels at the same count: a round that
+    // time cuts short is left out, unless it is the first.
+    let rounds = render_rounds(settings, |index, this| {
         let this_round: Mutex<Vec<Option<PairSums>>> =
             Mutex::new(vec![None; w as usize * h as usize]);
         let pixel = |p: [u32; 2], rng: &mut Pcg32| {
             let (mut sum, mut lost) = (PairSums::default(), 0u64);
-            for _ in 0..spp {
+            for _ in 0..this.spp {
                 let s = tracer.sample(p, rng);
                 if s.is_valid() {
                     sum.add(&s);
@@ -514,29 +505,20 @@ pub fn render_gradients(
             }
             *dropped.lock().expect("no thread panics while counting") += lost;
         };
-        let this = round_settings(settings, round, spp, start);
-        let run = render_tiles(scene, &this, stop, pixel, store)?;
-        (rays, ray_seconds) = (rays + run.rays, ray_seconds + run.ray_seconds);
-        let this_round = this_round.into_inner().expect("no thread panicked");
-        if !run.complete && done > 0 {
-            complete = false;
-            break;
-        }
-        let mut sums = sums.lock().expect("no thread panicked");
-        for (total, s) in sums.iter_mut().zip(this_round) {
-            match (total.as_mut(), s) {
-                (Some(t), Some(s)) => t.add(&s),
-                (None, s) => *total = s,
-                (Some(_), None) => {}
+        let run = render_tiles(scene, this, stop, pixel, store)?;
+        if run.complete || index == 0 {
+            let this_round = this_round.into_inner().expect("no thread panicked");
+            for (total, s) in sums.iter_mut().zip(this_round) {
+                match (total.as_mut(), s) {
+                    (Some(t), Some(s)) => t.add(&s),
+                    (None, s) => *total = s,
+                    (Some(_), None) => {}
+                }
             }
         }
-        done += spp;
-        if !run.complete {
-            complete = false;
-            break;
-        }
-    }
-    let sums = sums.into_inner().expect("no thread panicked");
+        Ok(run)
+    })?;
+    let done = rounds.spp;
     let spp = f64::from(done.max(1));
     let at = |x: i64, y: i64| -> Option<&PairSums> {
         if x < 0 || y < 0 || x >= i64::from(w) || y >= i64::from(h) {
@@ -550,12 +532,12 @@ pub fn render_gradients(
         primal: vec![[0.0; 3]; sums.len()],
         dx: vec![[0.0; 3]; sums.len()],
         dy: vec![[0.0; 3]; sums.len()],
-        seconds: start.elapsed().as_secs_f64(),
+        seconds: rounds.seconds,
         samples: sums.iter().flatten().count() as u64 * u64::from(done),
-        rays,
-        ray_seconds,
+        rays: rounds.rays,
+        ray_seconds: rounds.ray_seconds,
         dropped: dropped.into_inner().expect("no thread panicked"),
-        complete,
+        complete: rounds.complete,
         rendered: sums.iter().map(Option::is_some).collect(),
     };
     let rgb = |v: DVec3| (v / spp).as_vec3().to_array();

@@ -307,14 +307,13 @@ fn run_gradients(
     let tracer = GradientPathTracer::new(scene)?;
     let g = render_gradients(scene, &tracer, settings, stop)?;
     let image = g.reconstruct(&scene.integrator.gradient);
-    let rendered = g.rendered.iter().filter(|&&r| r).count().max(1) as u64;
+    let rendered = g.rendered.iter().filter(|&&r| r).count();
     // Cut short, every rendered pixel holds what time allowed.
-    let spp = u32::try_from(g.samples / rendered).unwrap_or(u32::MAX);
+    let spp = u32::try_from(g.samples / rendered.max(1) as u64).unwrap_or(u32::MAX);
     let (w, h) = (g.width, g.height);
     if !g.complete {
         eprintln!(
-            "stopped early: {} of {} pixels rendered, {spp} samples per pixel (of {} asked)",
-            g.rendered.iter().filter(|&&r| r).count(),
+            "stopped early: {rendered} of {} pixels rendered, {spp} samples per pixel (of {} asked)",
             w as usize * h as usize,
             settings.spp
         );

@@ -163,13 +163,8 @@ pub fn render_with(
     let (w, h) = (scene.film.width, scene.film.height);
     let film = Mutex::new(Film::new(w, h));
     let splats = SplatBuffer::new(w, h);
-    let start = Instant::now();
-    let (mut done, mut rays, mut ray_seconds, mut complete) = (0u32, 0, 0.0, true);
-    for round in 0u64.. {
-        let Some(spp) = round_size(settings, done, start.elapsed()) else {
-            complete = done == settings.spp;
-            break;
-        };
+    let rounds = render_rounds(settings, |_, this| {
+        let spp = this.spp;
         let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
             let mut scratch = SCRATCH.take();
             let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
@@ -197,24 +192,63 @@ pub fn render_with(
                 film.add_pixel(x, y, sum, spp, dropped);
             }
         };
-        let this = round_settings(settings, round, spp, start);
-        let run = render_tiles(scene, &this, stop, pixel, store)?;
-        (done, rays, ray_seconds) = (done + spp, rays + run.rays, ray_seconds + run.ray_seconds);
-        if !run.complete {
-            complete = false;
-            break;
-        }
-    }
+        render_tiles(scene, this, stop, pixel, store)
+    })?;
     let mut film = film.into_inner().expect("no thread panicked");
     let samples = film.samples();
     film.add_splats(&splats, samples);
     Ok(Rendered {
         film,
-        seconds: start.elapsed().as_secs_f64(),
+        seconds: rounds.seconds,
         samples,
+        rays: rounds.rays,
+        ray_seconds: rounds.ray_seconds,
+        complete: rounds.complete,
+    })
+}
+
+/// How a render in rounds went.
+pub(crate) struct Rounds {
+    /// Samples per pixel of the rounds kept (see [`render_rounds`]).
+    pub(crate) spp: u32,
+    pub(crate) rays: u64,
+    pub(crate) ray_seconds: f64,
+    pub(crate) seconds: f64,
+    /// False if time or a stop request ended the render early.
+    pub(crate) complete: bool,
+}
+
+/// Runs `round` (given the round's index and settings, returning its tile
+/// run) for each round of `settings` ([`Settings::time_limit`]) until its
+/// samples per pixel are taken, time runs out or a round is cut short.
+/// The rounds kept are every finished one and the first even if cut: a
+/// later round cut short is the caller's to keep or leave out.
+pub(crate) fn render_rounds(
+    settings: &Settings,
+    mut round: impl FnMut(u64, &Settings) -> Result<TileRun, String>,
+) -> Result<Rounds, String> {
+    let start = Instant::now();
+    let (mut done, mut rays, mut ray_seconds, mut cut) = (0u32, 0, 0.0, false);
+    for index in 0u64.. {
+        let Some(spp) = round_size(settings, done, start.elapsed()) else {
+            break;
+        };
+        let run = round(index, &round_settings(settings, index, spp, start))?;
+        (rays, ray_seconds) = (rays + run.rays, ray_seconds + run.ray_seconds);
+        if run.complete || index == 0 {
+            done += spp;
+        }
+        if !run.complete {
+            cut = true;
+            break;
+        }
+    }
+    Ok(Rounds {
+        spp: done,
         rays,
         ray_seconds,
-        complete,
+        seconds: start.elapsed().as_secs_f64(),
+        complete: !cut && done == settings.spp,
     })
 }
 
@@ -224,7 +258,7 @@ pub fn render_with(
 /// from one sample per pixel to about half the time left, so that when
 /// time runs out every pixel has about as many samples as any other (and
 /// a huge `spp` means "until the time limit").
-pub(crate) fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
+fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
     let left = settings.spp - done;
     match settings.time_limit {
         _ if left == 0 => None,
@@ -241,12 +275,7 @@ pub(crate) fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> O
 
 /// The settings of round `round` of `spp` samples per pixel, of a render
 /// that started at `start`: its own seed, and the time left.
-pub(crate) fn round_settings(
-    settings: &Settings,
-    round: u64,
-    spp: u32,
-    start: Instant,
-) -> Settings {
+fn round_settings(settings: &Settings, round: u64, spp: u32, start: Instant) -> Settings {
     Settings {
         spp,
         seed: round_seed(settings.seed, round),
