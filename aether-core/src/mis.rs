@@ -347,7 +347,7 @@ impl<'s, V> Split<'s, V> {
     pub fn new(camera: usize, middle: &[(StrategyRef<'s, V>, bool)]) -> Self {
         Split {
             camera,
-            middle: middle.iter().copied().collect(),
+            middle: SmallVec::from_slice(middle),
             samples: 1.0,
         }
     }
@@ -439,24 +439,26 @@ pub fn weight_of_split<'s, V: Vertex>(
     if !path.is_complete() || own >= splits.len() {
         return (0.0, PathDensity::ONE.times(Density::zero(Measure::Area)));
     }
-    let densities = split_densities(path, camera, light, splits, cache);
-    (
-        heuristic.weight(&counted(&densities, splits), own),
-        densities[own],
-    )
+    let mut densities = split_densities(path, camera, light, splits, cache);
+    let density = densities[own];
+    count(&mut densities, splits);
+    (heuristic.weight(&densities, own), density)
 }
 
 /// Each technique's density times its number of samples, as MIS weighs them.
 fn counted<V>(densities: &[PathDensity], splits: &[Split<'_, V>]) -> SmallVec<[PathDensity; 24]> {
-    let times = |p: &PathDensity, s: &Split<'_, V>| match s.samples {
-        1.0 => *p,
-        n => p.times(Density::new(n, Measure::Discrete)),
-    };
-    densities
-        .iter()
-        .zip(splits)
-        .map(|(p, s)| times(p, s))
-        .collect()
+    let mut counted: SmallVec<[PathDensity; 24]> = SmallVec::from_slice(densities);
+    count(&mut counted, splits);
+    counted
+}
+
+/// Multiplies each technique's density by its number of samples, in place.
+fn count<V>(densities: &mut [PathDensity], splits: &[Split<'_, V>]) {
+    for (p, s) in densities.iter_mut().zip(splits) {
+        if s.samples != 1.0 {
+            *p = p.times(Density::new(s.samples, Measure::Discrete));
+        }
+    }
 }
 
 /// As [`weight_of_split`] once for each strategy in `variants` taking the
@@ -534,7 +536,9 @@ pub fn densities_of_split<'s, V: Vertex>(
         let zero = PathDensity::ONE.times(Density::zero(Measure::Area));
         return splits.iter().map(|_| zero).collect();
     }
-    counted(&split_densities(path, camera, light, splits, cache), splits)
+    let mut densities = split_densities(path, camera, light, splits, cache);
+    count(&mut densities, splits);
+    densities
 }
 
 /// The density of `path` under each of `splits`.
@@ -572,14 +576,28 @@ fn split_densities<'s, V: Vertex>(
         Span::new(i, 1, step, reversed, 0)
     };
     // prefix[i]: vertices 0..i from the camera; suffix[i]: i..n from the light.
-    let mut prefix: SmallVec<[PathDensity; 16]> = SmallVec::with_capacity(reach + 1);
+    let mut prefix: SmallVec<[PathDensity; 16]> = SmallVec::new();
     prefix.push(PathDensity::ONE);
+    // The leading vertices sampled by the camera strategies themselves
+    // carry their prefix products: no factor is looked up for them.
+    let mut chained = true;
     for i in 0..reach {
-        prefix.push(prefix[i].times(factor(one(step(camera, i), i, false))));
+        let strategy = step(camera, i);
+        let chain = if chained {
+            path.chain(i, strategy)
+        } else {
+            None
+        };
+        chained = chain.is_some();
+        let p = chain.unwrap_or_else(|| prefix[i].times(factor(one(strategy, i, false))));
+        prefix.push(p);
     }
-    let mut suffix: SmallVec<[PathDensity; 16]> = SmallVec::from_elem(PathDensity::ONE, n + 1);
+    // suffix[i - from]: vertices i..n from the light.
+    let from = from.min(n);
+    let mut suffix: SmallVec<[PathDensity; 16]> =
+        SmallVec::from_elem(PathDensity::ONE, n + 1 - from);
     for i in (from..n).rev() {
-        suffix[i] = suffix[i + 1].times(factor(one(step(light, n - 1 - i), i, true)));
+        suffix[i - from] = suffix[i + 1 - from].times(factor(one(step(light, n - 1 - i), i, true)));
     }
     splits
         .iter()
@@ -600,7 +618,7 @@ fn split_densities<'s, V: Vertex>(
                 )));
                 start += strategy.arity();
             }
-            p.times_path(suffix[b])
+            p.times_path(suffix[b - from])
         })
         .collect()
 }

@@ -125,6 +125,13 @@ pub(crate) struct Slot<'s, V> {
     pub(crate) given: bool,
     /// The density recorded while sampling, on the step's first vertex.
     pub(crate) recorded: Option<(FactorKey, Density)>,
+    /// The product of the densities recorded for this vertex and every
+    /// vertex before it, each under the strategy that sampled it, while
+    /// they were sampled one by one, forward, in this sequence: the
+    /// camera-side prefix product MIS would otherwise rebuild factor by
+    /// factor. `None` once any of those vertices was not (a given or cut
+    /// vertex, a reversed or multi-vertex step, a part moved elsewhere).
+    pub(crate) chain: Option<PathDensity>,
 }
 
 impl<V> Slot<'_, V> {
@@ -137,6 +144,7 @@ impl<V> Slot<'_, V> {
             part: 0,
             given: false,
             recorded: None,
+            chain: None,
             ..*self
         };
     }
@@ -301,6 +309,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 id: fresh_id(),
                 given: true,
                 recorded: None,
+                chain: None,
             });
         }
         s
@@ -331,14 +340,15 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// full length, but still counts as a technique in
     /// [`combine`](crate::combine) and [`pdf_of`](Self::pdf_of).
     pub fn sample(&mut self, rng: &mut dyn UniformSource) -> StepKind {
-        let pending = std::mem::take(&mut self.pending);
         // A sequence that already stopped samples nothing more.
         let mut result = if self.unsampled.is_empty() {
             StepKind::Vertex
         } else {
             self.end.map_or(StepKind::Void, |e| e.0)
         };
-        for s in pending {
+        // By index, not by taking the list: a step moves no list.
+        for k in 0..self.pending.len() {
+            let s = self.pending[k];
             if result == StepKind::Vertex {
                 result = self.sample_step(s, rng);
                 if result == StepKind::Vertex {
@@ -347,6 +357,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             }
             self.unsampled.push(s);
         }
+        self.pending.clear();
         result
     }
 
@@ -402,24 +413,60 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
         let start = self.vertices.len();
         let arity = out.len();
-        for (part, v) in out.into_iter().enumerate() {
-            self.vertices.push(v);
-            let id = fresh_id();
+        self.vertices.extend(out.drain(..));
+        for part in 0..arity {
             self.slots.push(Slot {
                 strategy: Some(strategy),
                 reversed: false,
                 arity: arity as u8,
                 part: part as u8,
-                id,
+                id: fresh_id(),
                 given: false,
                 recorded: None,
+                chain: None,
             });
         }
         let span = Span::new(start, arity, Some(strategy), false, 0);
         if let Some(key) = self.key(&span) {
             self.slots[start].recorded = Some((key, density));
+            if arity == 1 {
+                let before = match start {
+                    0 => Some(PathDensity::ONE),
+                    _ => self.slots[start - 1].chain,
+                };
+                self.slots[start].chain = before.map(|p| p.times(density));
+            }
         }
         StepKind::Vertex
+    }
+
+    /// The product of the densities of vertices `0..=i` under the
+    /// strategies that sampled them, if vertex `i` and all before it were
+    /// sampled forward in this sequence, one per step, and vertex `i` by
+    /// `strategy`: what MIS's camera-side prefix product is there, without
+    /// a factor looked up. Equal to that product factor by factor, since
+    /// each recorded density is the one the factor would return.
+    pub(crate) fn chain(
+        &self,
+        i: usize,
+        strategy: Option<StrategyRef<'_, V>>,
+    ) -> Option<PathDensity> {
+        let slot = self.slots.get(i)?;
+        let same = match (slot.strategy, strategy) {
+            // The same object of the same type (a vtable copied into two
+            // codegen units only misses, and the factor is looked up).
+            (Some(StrategyRef::One(a)), Some(StrategyRef::One(b))) =>
+            {
+                #[allow(ambiguous_wide_pointer_comparisons)]
+                std::ptr::eq(a, b)
+            }
+            _ => false,
+        };
+        if same && !slot.reversed {
+            slot.chain
+        } else {
+            None
+        }
     }
 
     /// Number of vertices.
@@ -578,6 +625,13 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 slot.reversed = !slot.reversed;
             }
         }
+        // A prefix copied to the start keeps its chained products; moved
+        // anywhere else, its vertices have other predecessors.
+        if base > 0 || range.start > 0 || reversed {
+            for slot in &mut self.slots[base..] {
+                slot.chain = None;
+            }
+        }
         self
     }
 
@@ -607,6 +661,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                     reversed,
                     arity: arity as u8,
                     part: part as u8,
+                    chain: None,
                     ..*slot
                 };
             }

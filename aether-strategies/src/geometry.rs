@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use glam::{DVec3, Vec2, Vec3, Vec3A};
+use glam::{DVec3, Vec2, Vec3, Vec3A, Vec3Swizzles};
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::builder::build_cwbvh_from_tris;
@@ -144,7 +144,9 @@ fn bvh_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
 /// The per-ray setup of the watertight test (Woop, Benthin and Wald 2013).
 struct Shear {
     origin: Vec3,
-    k: [usize; 3],
+    /// Which of the six axis orders (kx, ky, kz) the ray uses: kz the
+    /// dominant axis of the direction, kx and ky swapped where it is negative.
+    order: u8,
     s: Vec3,
 }
 
@@ -160,21 +162,36 @@ impl Shear {
         };
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
-        if dir[kz] < 0.0 {
+        let flip = dir[kz] < 0.0;
+        if flip {
             std::mem::swap(&mut kx, &mut ky);
         }
         Shear {
             origin,
-            k: [kx, ky, kz],
+            order: 2 * kz as u8 + u8::from(flip),
             s: Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]),
         }
     }
 
+    /// (p[kx], p[ky], p[kz]) by swizzles: indexing a vector by a variable
+    /// costs more than the rest of the test.
+    #[inline]
+    fn permute(&self, p: Vec3) -> Vec3 {
+        match self.order {
+            0 => p.yzx(),
+            1 => p.zyx(),
+            2 => p.zxy(),
+            3 => p.xzy(),
+            4 => p,
+            _ => p.yxz(),
+        }
+    }
+
     /// Distance and barycentrics (of v0, v1, v2) of the hit, if any, in (t_min, t_max).
+    #[inline]
     fn intersect(&self, v: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, [f32; 3])> {
-        let [kx, ky, kz] = self.k;
-        let rel = v.map(|p| p - self.origin);
-        let xy = rel.map(|p| (p[kx] - self.s.x * p[kz], p[ky] - self.s.y * p[kz]));
+        let rel = v.map(|p| self.permute(p - self.origin));
+        let xy = rel.map(|p| (p.x - self.s.x * p.z, p.y - self.s.y * p.z));
         let (a, b, c) = (xy[0], xy[1], xy[2]);
         let mut u = c.0 * b.1 - c.1 * b.0;
         let mut w2 = a.0 * c.1 - a.1 * c.0;
@@ -193,7 +210,7 @@ impl Shear {
         if det == 0.0 {
             return None;
         }
-        let z = rel.map(|p| self.s.z * p[kz]);
+        let z = rel.map(|p| self.s.z * p.z);
         let t_scaled = u * z[0] + w2 * z[1] + w * z[2];
         let t = t_scaled / det;
         (t > t_min && t < t_max).then(|| (t, [u / det, w2 / det, w / det]))

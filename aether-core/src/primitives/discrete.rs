@@ -66,25 +66,28 @@ impl DiscreteDistribution {
         if weights.is_empty() {
             return Err(DiscreteError::Empty);
         }
-        if let Some((index, &value)) = weights
-            .iter()
-            .enumerate()
-            .find(|(_, w)| !(w.is_finite() && **w >= 0.0))
-        {
-            return Err(DiscreteError::InvalidWeight { index, value });
+        // One pass to check and sum; lobe choices (one or two weights) are
+        // built at every scattering event, so the tables are filled in place.
+        let mut total = 0.0;
+        for (index, &value) in weights.iter().enumerate() {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(DiscreteError::InvalidWeight { index, value });
+            }
+            total += value;
         }
-        let total: f64 = weights.iter().sum();
         if total <= 0.0 {
             return Err(DiscreteError::ZeroTotal);
         }
-        let pmf: SmallVec<[f64; 4]> = weights.iter().map(|w| w / total).collect();
-        let mut cdf: SmallVec<[f64; 5]> = smallvec![0.0];
+        let n = weights.len();
+        let mut pmf: SmallVec<[f64; 4]> = SmallVec::from_elem(0.0, n);
+        let mut cdf: SmallVec<[f64; 5]> = SmallVec::from_elem(0.0, n + 1);
         let mut acc = 0.0;
-        for w in weights {
+        for (i, w) in weights.iter().enumerate() {
+            pmf[i] = w / total;
             acc += w;
-            cdf.push(acc / total);
+            cdf[i + 1] = acc / total;
         }
-        *cdf.last_mut().expect("non-empty") = 1.0;
+        cdf[n] = 1.0;
         Ok(DiscreteDistribution { cdf, pmf })
     }
 
