@@ -249,23 +249,20 @@ fn combine_with<V: Vertex>(
         candidates.iter().map(|c| c.spans().collect()).collect();
     for j in 1..m {
         let a = spans.len() as u32;
-        for (index, s) in steps[j].iter().enumerate() {
-            if !steps[j - 1].contains(s) {
-                spans.push(SpanRecord {
-                    candidate: j as u32,
-                    index: index as u32,
-                });
-            }
-        }
+        let (added, removed) = (
+            &mut SmallVec::<[u32; 8]>::new(),
+            &mut SmallVec::<[u32; 8]>::new(),
+        );
+        difference(&steps[j - 1], &steps[j], removed, added);
+        spans.extend(added.iter().map(|&index| SpanRecord {
+            candidate: j as u32,
+            index,
+        }));
         let b = spans.len() as u32;
-        for (index, s) in steps[j - 1].iter().enumerate() {
-            if !steps[j].contains(s) {
-                spans.push(SpanRecord {
-                    candidate: (j - 1) as u32,
-                    index: index as u32,
-                });
-            }
-        }
+        spans.extend(removed.iter().map(|&index| SpanRecord {
+            candidate: (j - 1) as u32,
+            index,
+        }));
         diffs.push((a, b, b, spans.len() as u32));
     }
     let span_of = |r: &SpanRecord| steps[r.candidate as usize][r.index as usize];
@@ -323,6 +320,43 @@ fn combine_with<V: Vertex>(
         weights.push(heuristic.weight(densities, i));
     }
     weights
+}
+
+/// The steps of `a` that `b` lacks (`only_a`) and those of `b` that `a`
+/// lacks (`only_b`), as indices. Steps are ordered by their first vertex
+/// and do not overlap, so equal steps start at the same vertex and one
+/// merge walk finds them: time linear in the number of steps.
+fn difference<V>(
+    a: &[Span<'_, V>],
+    b: &[Span<'_, V>],
+    only_a: &mut SmallVec<[u32; 8]>,
+    only_b: &mut SmallVec<[u32; 8]>,
+) {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        match (a.get(i), b.get(j)) {
+            (Some(x), Some(y)) if x.start == y.start => {
+                if x != y {
+                    only_a.push(i as u32);
+                    only_b.push(j as u32);
+                }
+                i += 1;
+                j += 1;
+            }
+            (Some(x), Some(y)) if x.start < y.start => {
+                only_a.push(i as u32);
+                i += 1;
+            }
+            (Some(_), None) => {
+                only_a.push(i as u32);
+                i += 1;
+            }
+            _ => {
+                only_b.push(j as u32);
+                j += 1;
+            }
+        }
+    }
 }
 
 /// One technique of a path sampled from both ends: the first `camera`

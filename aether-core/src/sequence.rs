@@ -20,6 +20,17 @@ static NEXT_ID_BLOCK: AtomicU64 = AtomicU64::new(1);
 
 thread_local! {
     static NEXT_ID: Cell<(u64, u64)> = const { Cell::new((0, 0)) };
+    static EVALUATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// The number of densities this thread has evaluated by running a
+/// strategy in density mode for a path's vertices (densities recorded
+/// while sampling, or found in a cache, do not count): what MIS costs,
+/// counted rather than timed, so that a test can check that it grows
+/// linearly with path length.
+#[must_use]
+pub fn density_evaluations() -> u64 {
+    EVALUATIONS.with(Cell::get)
 }
 
 /// A fresh vertex identity. Ids come in per-thread blocks of 2³², so they
@@ -774,6 +785,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// Runs `span`'s strategy in density mode on this path's vertices.
     fn evaluate(&self, span: &Span<'_, V>, strategy: StrategyRef<'_, V>) -> Density {
+        EVALUATIONS.with(|c| c.set(c.get() + 1));
         let end = span.start + span.arity;
         if span.reversed {
             let prefix = Prefix::reversed(&self.vertices[end..]);

@@ -48,6 +48,8 @@ pub use chart::{
 pub use mis::{MisReport, Technique, check_mis};
 pub use stats::chi_square_p_value;
 
+pub use crate::sequence::density_evaluations;
+
 use crate::Step;
 use crate::distribution::{Distribution, Embed};
 use crate::strategy::{Prefix, Strategy};
