@@ -54,6 +54,7 @@ pub mod primitives;
 mod rng;
 mod sequence;
 mod shift;
+mod split;
 mod strategy;
 mod surface;
 pub mod testing;
@@ -64,15 +65,13 @@ pub use choice::{Mixture, RussianRoulette, Select};
 pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
-pub use mis::{
-    DensityCache, Heuristic, Split, Weights, combine, densities_of_split, weight_of_split,
-    weights_of_split_variants,
-};
+pub use mis::{DensityCache, Heuristic, Weights, combine};
 pub use mutation::{ChainPath, Mutation, Mutator, acceptance, propose, transition_density};
 pub use primary::{PrimarySamples, Replay};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use shift::{replay_jacobian, weight_of_shift};
+pub use split::{Split, densities_of_split, weight_of_split, weights_of_split_variants};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
 };
