@@ -7,6 +7,20 @@ use crate::density::{Density, Measure};
 use crate::distribution::{Distribution, Sample, Step, Uniforms};
 use crate::primitives::DiscreteDistribution;
 
+/// Runs `f` on a copy of `u` whose first uniform is `first`, kept on the
+/// stack: every discrete choice and roulette step of a sample remaps one.
+#[inline]
+fn sample_with_first<T>(u: &[f32], first: f32, f: impl FnOnce(&[f32]) -> T) -> T {
+    let mut buffer = [0.0f32; 8];
+    if u.len() > buffer.len() {
+        return f(&with_first(u, first));
+    }
+    let n = u.len().max(1);
+    buffer[..u.len()].copy_from_slice(u);
+    buffer[0] = first;
+    f(&buffer[..n])
+}
+
 /// Replaces `u[0]` by `first` in a copy of `u`.
 fn with_first(u: &[f32], first: f32) -> Uniforms {
     let mut v = Uniforms::from_slice(u);
@@ -79,7 +93,7 @@ where
             branch.dims() <= self.dims,
             "branch {i} reads more uniforms than declared"
         );
-        let s = branch.sample(&with_first(u, rest))?;
+        let s = sample_with_first(u, rest, |u| branch.sample(u))?;
         Some(Sample::new(
             s.value,
             Density::discrete(choice.probability(i)) * s.density,
@@ -163,7 +177,7 @@ where
     fn sample(&self, u: &[f32]) -> Option<Sample<D::Value>> {
         let choice = self.choice.borrow();
         let (i, rest) = choice.select(u[0]);
-        let s = (self.branch)(i).sample(&with_first(u, rest))?;
+        let s = sample_with_first(u, rest, |u| (self.branch)(i).sample(u))?;
         // The recorded density is the mixture's, not the chosen branch's:
         // MIS and estimators need the density of the value.
         let density = self.density(&s.value);
@@ -239,7 +253,7 @@ impl<T, D: Distribution<Value = Step<T>>> Distribution for RussianRoulette<D> {
             ));
         }
         let rest = crate::distribution::below_one((f64::from(u[0]) / self.q) as f32);
-        let s = self.inner.sample(&with_first(u, rest))?;
+        let s = sample_with_first(u, rest, |u| self.inner.sample(u))?;
         let density = match s.value {
             Step::Terminated => self.density(&s.value),
             _ => s.density.scale(self.q),

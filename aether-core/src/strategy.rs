@@ -236,8 +236,20 @@ fn run<T, D: Distribution<Value = Step<T>>>(
     rng: &mut dyn UniformSource,
     push: impl FnOnce(T),
 ) -> (StepKind, Density) {
-    let u = draw(d.dims(), rng);
-    match d.sample(&u) {
+    // Up to eight uniforms are drawn into the stack, more into a list.
+    let (dims, mut buffer, list);
+    dims = d.dims();
+    buffer = [0.0f32; 8];
+    let u: &[f32] = if dims <= buffer.len() {
+        for x in &mut buffer[..dims] {
+            *x = rng.next_f32();
+        }
+        &buffer[..dims]
+    } else {
+        list = draw(dims, rng);
+        &list
+    };
+    match d.sample(u) {
         Some(s) => match s.value {
             Step::Vertex(v) => {
                 push(v);

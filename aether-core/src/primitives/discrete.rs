@@ -79,6 +79,13 @@ impl DiscreteDistribution {
             return Err(DiscreteError::ZeroTotal);
         }
         let n = weights.len();
+        if n == 1 {
+            // w / w: a certain outcome (most lobe choices).
+            return Ok(DiscreteDistribution {
+                cdf: SmallVec::from_buf_and_len([0.0, 1.0, 0.0, 0.0, 0.0], 2),
+                pmf: SmallVec::from_buf_and_len([1.0, 0.0, 0.0, 0.0], 1),
+            });
+        }
         let mut pmf: SmallVec<[f64; 4]> = SmallVec::from_elem(0.0, n);
         let mut cdf: SmallVec<[f64; 5]> = SmallVec::from_elem(0.0, n + 1);
         let mut acc = 0.0;
