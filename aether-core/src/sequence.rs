@@ -136,13 +136,17 @@ pub(crate) struct Slot<'s, V> {
     pub(crate) given: bool,
     /// The density recorded while sampling, on the step's first vertex.
     pub(crate) recorded: Option<(FactorKey, Density)>,
-    /// The product of the densities recorded for this vertex and every
-    /// vertex before it, each under the strategy that sampled it, while
-    /// they were sampled one by one, forward, in this sequence: the
-    /// camera-side prefix product MIS would otherwise rebuild factor by
-    /// factor. `None` once any of those vertices was not (a given or cut
-    /// vertex, a reversed or multi-vertex step, a part moved elsewhere).
-    pub(crate) chain: Option<PathDensity>,
+    /// A running product of recorded densities: for a vertex sampled
+    /// forward, of its own and those of the vertices before it, each under
+    /// the strategy that sampled it, while they were sampled one by one in
+    /// one sequence; with the number of vertices it covers. The camera-side
+    /// prefix product that MIS would otherwise rebuild factor by factor,
+    /// or, once the sequence is reversed into the light end of a path, the
+    /// light-side suffix product. Valid as such only while the vertices it
+    /// covers start the path (forward) or end it (reversed): their densities
+    /// depend on no other vertex. `None` for a given or cut vertex, a
+    /// multi-vertex step, or a vertex copied without all it covers.
+    pub(crate) chain: Option<(PathDensity, u16)>,
 }
 
 impl<V> Slot<'_, V> {
@@ -443,17 +447,43 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             if arity == 1 {
                 let before = match start {
                     0 => Some(PathDensity::ONE),
-                    _ => self.slots[start - 1].chain,
+                    _ => self.prefix_chain(start - 1),
                 };
-                self.slots[start].chain = before.map(|p| p.times(density));
+                let covers = u16::try_from(start + 1).ok();
+                self.slots[start].chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
             }
         }
         StepKind::Vertex
     }
 
     /// The product of the densities of vertices `0..=i` under the
+    /// strategies that sampled them, if they were sampled forward one by
+    /// one in a sequence that this one starts with.
+    fn prefix_chain(&self, i: usize) -> Option<PathDensity> {
+        let slot = self.slots.get(i)?;
+        match slot.chain {
+            Some((p, covers)) if !slot.reversed && usize::from(covers) == i + 1 => Some(p),
+            _ => None,
+        }
+    }
+
+    /// True if vertex `i` is sampled by `strategy` (the same object of the
+    /// same type: a vtable copied into two codegen units only misses, and
+    /// the factor is then looked up).
+    fn sampled_by(&self, i: usize, strategy: Option<StrategyRef<'_, V>>) -> bool {
+        match (self.slots[i].strategy, strategy) {
+            (Some(StrategyRef::One(a)), Some(StrategyRef::One(b))) =>
+            {
+                #[allow(ambiguous_wide_pointer_comparisons)]
+                std::ptr::eq(a, b)
+            }
+            _ => false,
+        }
+    }
+
+    /// The product of the densities of vertices `0..=i` under the
     /// strategies that sampled them, if vertex `i` and all before it were
-    /// sampled forward in this sequence, one per step, and vertex `i` by
+    /// sampled forward in one sequence, one per step, and vertex `i` by
     /// `strategy`: what MIS's camera-side prefix product is there, without
     /// a factor looked up. Equal to that product factor by factor, since
     /// each recorded density is the one the factor would return.
@@ -462,21 +492,27 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         i: usize,
         strategy: Option<StrategyRef<'_, V>>,
     ) -> Option<PathDensity> {
-        let slot = self.slots.get(i)?;
-        let same = match (slot.strategy, strategy) {
-            // The same object of the same type (a vtable copied into two
-            // codegen units only misses, and the factor is looked up).
-            (Some(StrategyRef::One(a)), Some(StrategyRef::One(b))) =>
-            {
-                #[allow(ambiguous_wide_pointer_comparisons)]
-                std::ptr::eq(a, b)
-            }
-            _ => false,
-        };
-        if same && !slot.reversed {
-            slot.chain
-        } else {
-            None
+        (i < self.len() && self.sampled_by(i, strategy))
+            .then(|| self.prefix_chain(i))
+            .flatten()
+    }
+
+    /// As [`chain`](Self::chain) for the light end: the product of the
+    /// densities of vertices `i..len` under the strategies that sampled
+    /// them, reversed, if they were sampled forward one by one in one
+    /// sequence (a light subpath) and vertex `i` by `strategy`.
+    pub(crate) fn suffix_chain(
+        &self,
+        i: usize,
+        strategy: Option<StrategyRef<'_, V>>,
+    ) -> Option<PathDensity> {
+        if i >= self.len() || !self.sampled_by(i, strategy) {
+            return None;
+        }
+        let slot = &self.slots[i];
+        match slot.chain {
+            Some((p, covers)) if slot.reversed && i + usize::from(covers) == self.len() => Some(p),
+            _ => None,
         }
     }
 
@@ -618,6 +654,22 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             .extend(other.vertices[range.clone()].iter().cloned());
         self.slots.extend_from_slice(&other.slots[range.clone()]);
         let added = &mut self.slots[base..];
+        // A running product survives a copy of every vertex it covers.
+        for (k, slot) in added.iter_mut().enumerate() {
+            let j = range.start + k;
+            if let Some((_, covers)) = slot.chain {
+                let c = usize::from(covers);
+                let (first, last) = if slot.reversed {
+                    (j, j + c - 1)
+                } else {
+                    (j + 1 - c.min(j + 1), j)
+                };
+                if c == 0 || c > j + 1 && !slot.reversed || first < range.start || last >= range.end
+                {
+                    slot.chain = None;
+                }
+            }
+        }
         let mut k = 0;
         while k < added.len() {
             let arity = usize::from(added[k].arity);
@@ -634,13 +686,6 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             self.slots[base..].reverse();
             for slot in &mut self.slots[base..] {
                 slot.reversed = !slot.reversed;
-            }
-        }
-        // A prefix copied to the start keeps its chained products; moved
-        // anywhere else, its vertices have other predecessors.
-        if base > 0 || range.start > 0 || reversed {
-            for slot in &mut self.slots[base..] {
-                slot.chain = None;
             }
         }
         self

@@ -313,8 +313,19 @@ fn split_densities<'s, V: Vertex>(
     let from = from.min(n);
     suffix.clear();
     suffix.resize(n + 1 - from, PathDensity::ONE);
+    // The trailing vertices sampled by the light strategies themselves
+    // carry their suffix products, as the leading ones their prefixes.
+    let mut chained = true;
     for i in (from..n).rev() {
-        suffix[i - from] = suffix[i + 1 - from].times(factor(one(step(light, n - 1 - i), i, true)));
+        let strategy = step(light, n - 1 - i);
+        let chain = if chained {
+            path.suffix_chain(i, strategy)
+        } else {
+            None
+        };
+        chained = chain.is_some();
+        suffix[i - from] =
+            chain.unwrap_or_else(|| suffix[i + 1 - from].times(factor(one(strategy, i, true))));
     }
     densities.clear();
     densities.extend(splits.iter().map(|s| {
