@@ -886,7 +886,13 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// strategies, in the product of the vertices' measures.
     #[must_use]
     pub fn pdf(&self) -> PathDensity {
-        self.pdf_of(self)
+        // Sampled one vertex per step from the start, the path's density is
+        // the running product its last vertex carries, factor for factor.
+        let chained = self.len().checked_sub(1).and_then(|i| self.prefix_chain(i));
+        match chained {
+            Some(p) if self.is_complete() => p,
+            _ => self.pdf_of(self),
+        }
     }
 
     /// The density with which this sequence's strategies, each in its

@@ -116,11 +116,14 @@ fn light_sphere(scene: &Scene) -> (Vec3, f32) {
     (center, radius)
 }
 
-fn render(scene: &Scene, estimator: &dyn Estimator, spp: u32, seed: u64) -> Vec<[f32; 3]> {
+/// The image, and the samples per second it was rendered at.
+fn render(scene: &Scene, estimator: &dyn Estimator, spp: u32, seed: u64) -> (Vec<[f32; 3]>, f64) {
     let settings = Settings::new(spp, seed);
+    let start = std::time::Instant::now();
     let r =
         render_with(scene, estimator, &settings, &AtomicBool::new(false)).expect("threads start");
-    r.film.image()
+    let samples = f64::from(scene.film.width * scene.film.height) * f64::from(spp);
+    (r.film.image(), samples / start.elapsed().as_secs_f64())
 }
 
 fn main() {
@@ -138,17 +141,19 @@ fn main() {
         },
     };
     let two = DirectLighting::new(&scene).expect("a known filter");
-    let reference = render(&scene, &two, 2048, 1);
+    let (reference, _) = render(&scene, &two, 2048, 1);
     for (name, estimator) in [
         ("direct (BSDF + light area)", &two as &dyn Estimator),
         ("three ways (+ cone)", &three),
     ] {
-        let c = Comparison::of(&render(&scene, estimator, 128, 2), &reference).expect("same size");
+        let (image, speed) = render(&scene, estimator, 128, 2);
+        let c = Comparison::of(&image, &reference).expect("same size");
         println!(
-            "{name:<28} 128 spp: mean {:.5} ({:+.2} % from the reference), RMSE {:.5}",
+            "{name:<28} 128 spp: mean {:.5} ({:+.2} % from the reference), RMSE {:.5}, {:.0} samples/s",
             c.mean,
             100.0 * c.relative_difference(),
-            c.rmse
+            c.rmse,
+            speed
         );
     }
 }
