@@ -467,11 +467,22 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
     }
 
+    /// The product of the densities of vertices `i..len` under the
+    /// strategies that sampled them, reversed, if they were sampled forward
+    /// one by one in a sequence that this one ends with, reversed.
+    fn suffix_product(&self, i: usize) -> Option<PathDensity> {
+        let slot = self.slots.get(i)?;
+        match slot.chain {
+            Some((p, covers)) if slot.reversed && i + usize::from(covers) == self.len() => Some(p),
+            _ => None,
+        }
+    }
+
     /// True if vertex `i` is sampled by `strategy` (the same object of the
     /// same type: a vtable copied into two codegen units only misses, and
     /// the factor is then looked up).
     fn sampled_by(&self, i: usize, strategy: Option<StrategyRef<'_, V>>) -> bool {
-        match (self.slots[i].strategy, strategy) {
+        match (self.slots.get(i).and_then(|s| s.strategy), strategy) {
             (Some(StrategyRef::One(a)), Some(StrategyRef::One(b))) =>
             {
                 #[allow(ambiguous_wide_pointer_comparisons)]
@@ -492,7 +503,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         i: usize,
         strategy: Option<StrategyRef<'_, V>>,
     ) -> Option<PathDensity> {
-        (i < self.len() && self.sampled_by(i, strategy))
+        self.sampled_by(i, strategy)
             .then(|| self.prefix_chain(i))
             .flatten()
     }
@@ -506,14 +517,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         i: usize,
         strategy: Option<StrategyRef<'_, V>>,
     ) -> Option<PathDensity> {
-        if i >= self.len() || !self.sampled_by(i, strategy) {
-            return None;
-        }
-        let slot = &self.slots[i];
-        match slot.chain {
-            Some((p, covers)) if slot.reversed && i + usize::from(covers) == self.len() => Some(p),
-            _ => None,
-        }
+        self.sampled_by(i, strategy)
+            .then(|| self.suffix_product(i))
+            .flatten()
     }
 
     /// Number of vertices.
@@ -654,18 +660,19 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             .extend(other.vertices[range.clone()].iter().cloned());
         self.slots.extend_from_slice(&other.slots[range.clone()]);
         let added = &mut self.slots[base..];
-        // A running product survives a copy of every vertex it covers.
+        // A running product survives a copy of every vertex it covers: the
+        // vertex and those before it (forward) or after it (reversed).
         for (k, slot) in added.iter_mut().enumerate() {
             let j = range.start + k;
             if let Some((_, covers)) = slot.chain {
                 let c = usize::from(covers);
-                let (first, last) = if slot.reversed {
-                    (j, j + c - 1)
+                let first = if slot.reversed {
+                    Some(j)
                 } else {
-                    (j + 1 - c.min(j + 1), j)
+                    (j + 1).checked_sub(c)
                 };
-                if c == 0 || c > j + 1 && !slot.reversed || first < range.start || last >= range.end
-                {
+                let copied = first.is_some_and(|f| f >= range.start && f + c <= range.end);
+                if c == 0 || !copied {
                     slot.chain = None;
                 }
             }

@@ -237,9 +237,9 @@ fn run<T, D: Distribution<Value = Step<T>>>(
     push: impl FnOnce(T),
 ) -> (StepKind, Density) {
     // Up to eight uniforms are drawn into the stack, more into a list.
-    let (dims, mut buffer, list);
-    dims = d.dims();
-    buffer = [0.0f32; 8];
+    let dims = d.dims();
+    let mut buffer = [0.0f32; 8];
+    let list;
     let u: &[f32] = if dims <= buffer.len() {
         for x in &mut buffer[..dims] {
             *x = rng.next_f32();
