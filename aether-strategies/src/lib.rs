@@ -9,6 +9,7 @@
 pub mod bitmap;
 pub mod bsdf;
 pub mod camera;
+pub mod files;
 pub mod geometry;
 pub mod integrand;
 pub mod lights;

@@ -268,7 +268,10 @@ fn load_scaled(o: &Options, name: &str, file: &Path) -> Result<Scene, String> {
     let replaced = REPLACED.iter().find(|(from, _)| *from == name);
     let file = replaced.map_or(file.to_path_buf(), |(_, to)| workspace().join(to));
     let mut scene = Scene::load(&file, &HashMap::new()).map_err(|e| e.to_string())?;
-    scene.film.scale_to_width(o.width);
+    scene
+        .film
+        .scale_to_width(o.width)
+        .map_err(|e| e.to_string())?;
     if scene.integrator.max_depth < 0 {
         scene.integrator.max_depth = 6;
     }

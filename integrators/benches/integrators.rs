@@ -139,7 +139,10 @@ fn shared(file: &str, width: u32) -> Result<Scene, String> {
         .join("../../shared/scenes/aether")
         .join(file);
     let mut scene = Scene::load(&path, &HashMap::new()).map_err(|e| e.to_string())?;
-    scene.film.scale_to_width(width);
+    scene
+        .film
+        .scale_to_width(width)
+        .map_err(|e| e.to_string())?;
     // Aether's integrators stop at depth 6 where a scene sets no limit.
     if scene.integrator.max_depth < 0 {
         scene.integrator.max_depth = 6;

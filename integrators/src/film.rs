@@ -112,6 +112,12 @@ impl Film {
         self.counts.iter().map(|&n| u64::from(n)).sum()
     }
 
+    /// Each pixel's camera samples, row by row.
+    #[must_use]
+    pub fn counts(&self) -> &[u32] {
+        &self.counts
+    }
+
     /// Pixels rendered with at least one sample.
     #[must_use]
     pub fn rendered_pixels(&self) -> usize {

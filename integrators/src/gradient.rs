@@ -44,7 +44,8 @@ use crate::film::Film;
 use crate::film::is_valid;
 use crate::path::techniques;
 use crate::poisson::{Norm, reconstruct};
-use crate::render::{Rendered, Settings, Tile, render_rounds, render_tiles, repeat_passes};
+use crate::render::{PixelSamples, Rendered, Settings, Tile, render_tiles, repeat_passes};
+use crate::rounds::render_rounds;
 
 thread_local! {
     /// Density factors of one sample's base and offset paths: the offsets
@@ -479,33 +480,37 @@ pub fn render_gradients(
     let dropped = Mutex::new(0u64);
     // A pair's estimates need both pixels at the same count: a round that
     // time cuts short is left out, unless it is the first.
-    let rounds = render_rounds(settings, |index, this| {
+    let pixels = u64::from(cw) * u64::from(ch);
+    let rounds = render_rounds(settings, pixels, |index, this, bar| {
         let this_round: Mutex<Vec<Option<PairSums>>> =
             Mutex::new(vec![None; w as usize * h as usize]);
-        let pixel = |p: [u32; 2], rng: &mut Pcg32| {
-            let (mut sum, mut lost) = (PairSums::default(), 0u64);
-            for _ in 0..this.spp {
-                let s = tracer.sample(p, rng);
+        // A pixel cut short by a stop keeps nothing of this round.
+        let pixel = |p: [u32; 2], samples: PixelSamples<'_>| {
+            let (mut sum, mut lost, asked) = (PairSums::default(), 0u64, samples.asked());
+            let mut taken = 0;
+            for mut rng in samples {
+                let s = tracer.sample(p, &mut rng);
+                taken += 1;
                 if s.is_valid() {
                     sum.add(&s);
                 } else {
                     lost += 1;
                 }
             }
-            (sum, lost)
+            (taken == asked).then_some((sum, lost))
         };
-        let store = |tile: Tile<(PairSums, u64)>| {
+        let store = |tile: Tile<Option<(PairSums, u64)>>| {
             let mut sums = this_round
                 .lock()
                 .expect("no thread panics while holding the sums");
             let mut lost = 0;
-            for ([x, y], (s, l)) in tile {
+            for ([x, y], (s, l)) in tile.into_iter().filter_map(|(p, r)| Some((p, r?))) {
                 sums[(y * w + x) as usize] = Some(s);
                 lost += l;
             }
             *dropped.lock().expect("no thread panics while counting") += lost;
         };
-        let run = render_tiles(scene, this, stop, pixel, store)?;
+        let run = render_tiles(scene, this, stop, bar, pixel, store)?;
         if run.complete || index == 0 {
             let this_round = this_round.into_inner().expect("no thread panicked");
             for (total, s) in sums.iter_mut().zip(this_round) {

@@ -30,6 +30,7 @@ pub mod output;
 pub mod path;
 pub mod poisson;
 pub mod render;
+pub mod rounds;
 pub mod techniques;
 
 pub use aether_strategies as strategies;

@@ -7,13 +7,15 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use aether_strategies::scene::Scene;
+use aether_strategies::scene::{Film, Scene};
 use clap::{Parser, Subcommand, ValueEnum};
 use integrators::bdpt::Bdpt;
 use integrators::cornell::cornell_box;
 use integrators::gradient::{GradientPathTracer, render_gradients};
 use integrators::mlt::{MltSettings, Variant, render_mlt};
-use integrators::output::{Comparison, read_exr, write_exr, write_png};
+use integrators::output::{
+    Comparison, OutputFiles, read_exr, write_exr, write_exr_with_counts, write_png,
+};
 use integrators::render::{Settings, render, render_with};
 
 #[derive(Parser, Debug)]
@@ -107,7 +109,8 @@ struct RenderArgs {
     /// Stop after this many seconds, keeping what was rendered.
     #[arg(long)]
     time_limit: Option<f64>,
-    /// Output EXR file; a PNG preview is written beside it.
+    /// Output image: `x.exr` (linear HDR) or `x.png` (sRGB preview); the other
+    /// is written beside it with the same name.
     #[arg(short, long, default_value = "out.exr")]
     output: PathBuf,
     /// Exposure of the PNG preview, in stops.
@@ -173,15 +176,42 @@ fn parse_param(s: &str) -> Result<(String, String), String> {
         .ok_or_else(|| format!("'{s}' is not name=value"))
 }
 
-fn run(args: RenderArgs) -> Result<(), String> {
-    let params: HashMap<String, String> = args.define.into_iter().collect();
-    let mut scene = match &args.scene {
+fn run(args: RenderArgs) -> Result<Outcome, String> {
+    let params: HashMap<String, String> = args.define.iter().cloned().collect();
+    let outputs = OutputFiles::for_name(&args.output).map_err(|e| e.to_string())?;
+    if args.threads == Some(0) {
+        return Err("--threads must be at least 1 (leave it out for all cores)".to_string());
+    }
+    let scene = match &args.scene {
         Some(path) => Scene::load(path, &params).map_err(|e| e.to_string())?,
-        None => cornell_box(args.size, args.size, 16),
+        None => {
+            let size = u64::from(args.size);
+            Film::check_size(size, size).map_err(|e| format!("--size {}: {e}", args.size))?;
+            cornell_box(args.size.max(1), args.size.max(1), 16)
+        }
     };
     for w in &scene.warnings {
         eprintln!("{w}");
     }
+    // What goes wrong past loading names the scene it happened to.
+    let name = args
+        .scene
+        .as_ref()
+        .map_or("the built-in Cornell box".to_string(), |p| {
+            p.display().to_string()
+        });
+    render_scene(&args, scene, &outputs).map_err(|e| match e.starts_with(&name) {
+        true => e,
+        false => format!("{name}: {e}"),
+    })
+}
+
+/// Renders a loaded scene with the command line's settings.
+fn render_scene(
+    args: &RenderArgs,
+    mut scene: Scene,
+    outputs: &OutputFiles,
+) -> Result<Outcome, String> {
     if let Some(spp) = args.spp {
         if spp == 0 {
             return Err("--spp must be positive".to_string());
@@ -192,7 +222,10 @@ fn run(args: RenderArgs) -> Result<(), String> {
         if width == 0 {
             return Err("--width must be positive".to_string());
         }
-        scene.film.scale_to_width(width);
+        scene
+            .film
+            .scale_to_width(width)
+            .map_err(|e| format!("--width {width}: {e}"))?;
     }
     if let Some(d) = args.max_depth {
         scene.integrator.max_depth = d;
@@ -201,10 +234,19 @@ fn run(args: RenderArgs) -> Result<(), String> {
         format!("{i:?}").to_lowercase()
     });
     scene.integrator.name = wanted;
+    outputs.check_writable()?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
-    ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed))
-        .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
+    // Ctrl-C, SIGTERM (a batch system's time limit) and SIGHUP stop the
+    // render between samples and write what it holds; a second one quits.
+    ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::Relaxed) {
+            eprintln!("\nstopped again: quitting without writing");
+            std::process::exit(130);
+        }
+        eprintln!("\nstopping: writing the image at the samples taken (again to quit at once)");
+    })
+    .map_err(|e| format!("cannot catch Ctrl-C: {e}"))?;
     let time_limit = match args.time_limit {
         Some(t) if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
         Some(t) => {
@@ -217,12 +259,14 @@ fn run(args: RenderArgs) -> Result<(), String> {
     let settings = Settings {
         spp: scene.film.spp,
         seed: args.seed,
+        first_sample: 0,
         time_limit,
         threads: args.threads,
         progress: true,
     };
     if scene.integrator.name == "gpt" {
-        return run_gradients(&scene, &settings, &stop, &args.output, args.exposure);
+        run_gradients(&scene, &settings, &stop, outputs, args.exposure)?;
+        return Ok(stopped(&stop));
     }
     let scene_mlt = MltSettings::for_scene(&scene);
     let mlt = MltSettings {
@@ -258,15 +302,17 @@ fn run(args: RenderArgs) -> Result<(), String> {
     };
     let image = r.film.image();
     let (w, h) = (scene.film.width, scene.film.height);
-    // Cut short, pixels hold what time allowed: the file says the mean.
     let pixels = r.film.rendered_pixels().max(1) as u64;
-    let spp = match r.complete {
-        true => scene.film.spp,
-        false => u32::try_from(r.samples / pixels).unwrap_or(u32::MAX),
-    };
-    write_exr(&args.output, w, h, &image, spp, r.seconds)?;
-    let png = args.output.with_extension("png");
-    write_png(&png, w, h, &image, args.exposure)?;
+    let metropolis = Variant::named(&scene.integrator.name).is_some();
+    let (exr, png) = (&outputs.exr, &outputs.png);
+    if metropolis {
+        // Chains splat everywhere: the file says mutations per pixel.
+        let spp = u32::try_from(r.samples / pixels).unwrap_or(u32::MAX);
+        write_exr(exr, w, h, &image, spp, r.seconds)?;
+    } else {
+        write_exr_with_counts(exr, w, h, &image, r.film.counts(), r.seconds)?;
+    }
+    write_png(png, w, h, &image, args.exposure)?;
     if !r.complete {
         eprintln!(
             "stopped early: {} of {} pixels rendered, {:.1} samples per pixel on average (of {} asked)",
@@ -275,7 +321,7 @@ fn run(args: RenderArgs) -> Result<(), String> {
             r.samples as f64 / pixels as f64,
             scene.film.spp
         );
-        if r.samples == 0 && Variant::named(&scene.integrator.name).is_some() {
+        if r.samples == 0 && metropolis {
             eprintln!(
                 "the time limit ran out before the chains started: the bootstrap took it (see --bootstrap)"
             );
@@ -286,13 +332,31 @@ fn run(args: RenderArgs) -> Result<(), String> {
     }
     println!(
         "{} and {}: {:.2} s, {:.0} samples/s, {:.2} Mrays/s",
-        args.output.display(),
+        exr.display(),
         png.display(),
         r.seconds,
         r.samples as f64 / r.seconds,
         r.rays as f64 / r.seconds / 1e6,
     );
-    Ok(())
+    Ok(stopped(&stop))
+}
+
+/// How a render that wrote its images ends: stopped by a signal, or not.
+fn stopped(stop: &AtomicBool) -> Outcome {
+    if stop.load(Ordering::Relaxed) {
+        Outcome::Interrupted
+    } else {
+        Outcome::Finished
+    }
+}
+
+/// How a command that did not fail ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Outcome {
+    Finished,
+    /// Stopped by Ctrl-C or SIGTERM, after writing what it had: the exit
+    /// status says so, so that a batch system does not take it for done.
+    Interrupted,
 }
 
 /// Gradient-domain path tracing: the reconstruction to `output`, and the
@@ -301,9 +365,10 @@ fn run_gradients(
     scene: &Scene,
     settings: &Settings,
     stop: &AtomicBool,
-    output: &std::path::Path,
+    outputs: &OutputFiles,
     exposure: f32,
 ) -> Result<(), String> {
+    let output = outputs.exr.as_path();
     let tracer = GradientPathTracer::new(scene)?;
     let g = render_gradients(scene, &tracer, settings, stop)?;
     let image = g.reconstruct(&scene.integrator.gradient);
@@ -352,10 +417,13 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run(*args),
-        Command::Compare { reference, images } => compare(&reference, &images),
+        Command::Compare { reference, images } => {
+            compare(&reference, &images).map(|()| Outcome::Finished)
+        }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Outcome::Finished) => ExitCode::SUCCESS,
+        Ok(Outcome::Interrupted) => ExitCode::from(130),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

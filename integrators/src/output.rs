@@ -20,18 +20,125 @@ pub fn write_exr(
         (c[0], c[1], c[2])
     });
     let mut image = Image::from_channels((w, height as usize), channels);
-    image
-        .attributes
-        .other
-        .insert(Text::new_or_panic("spp"), AttributeValue::I32(spp as i32));
-    image.attributes.other.insert(
-        Text::new_or_panic("renderTimeSeconds"),
-        AttributeValue::F64(seconds),
-    );
+    insert_header(&mut image.attributes.other, f64::from(spp), seconds);
     image
         .write()
         .to_file(path)
         .map_err(|e| format!("{}: cannot write the EXR image: {e}", path.display()))
+}
+
+/// Writes linear RGB to an EXR file with each pixel's sample count in a
+/// `samples` channel (u32) and their mean as the `spp` attribute (and, as
+/// a float, `sppMean`): the true counts of a render that was stopped.
+pub fn write_exr_with_counts(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[[f32; 3]],
+    counts: &[u32],
+    seconds: f64,
+) -> std::result::Result<(), String> {
+    let w = width as usize;
+    let channels = SpecificChannels::build()
+        .with_channel("B")
+        .with_channel("G")
+        .with_channel("R")
+        .with_channel("samples")
+        .with_pixel_fn(|Vec2(x, y)| {
+            let (c, n): ([f32; 3], u32) = (rgb[y * w + x], counts[y * w + x]);
+            (c[2], c[1], c[0], n)
+        });
+    let mut image = Image::from_channels((w, height as usize), channels);
+    let total: u64 = counts.iter().map(|&n| u64::from(n)).sum();
+    let mean = total as f64 / counts.len().max(1) as f64;
+    insert_header(&mut image.attributes.other, mean, seconds);
+    image
+        .write()
+        .to_file(path)
+        .map_err(|e| format!("{}: cannot write the EXR image: {e}", path.display()))
+}
+
+fn insert_header(
+    other: &mut std::collections::HashMap<Text, AttributeValue>,
+    spp: f64,
+    seconds: f64,
+) {
+    let rounded = spp.round().clamp(0.0, f64::from(i32::MAX)) as i32;
+    other.insert(Text::new_or_panic("spp"), AttributeValue::I32(rounded));
+    other.insert(Text::new_or_panic("sppMean"), AttributeValue::F64(spp));
+    other.insert(
+        Text::new_or_panic("renderTimeSeconds"),
+        AttributeValue::F64(seconds),
+    );
+}
+
+/// Where a render's images go: the EXR (linear, HDR) and its sRGB PNG
+/// preview, one named by `-o` and the other beside it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OutputFiles {
+    /// The EXR image.
+    pub exr: std::path::PathBuf,
+    /// The PNG preview.
+    pub png: std::path::PathBuf,
+}
+
+/// An output name whose extension is neither `.exr` nor `.png`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownFormat(pub std::path::PathBuf);
+
+impl std::fmt::Display for UnknownFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: the output is written as EXR (name it .exr; the PNG preview goes beside it) or as a PNG preview (name it .png; the EXR goes beside it); no other format is written",
+            self.0.display()
+        )
+    }
+}
+
+impl std::error::Error for UnknownFormat {}
+
+impl OutputFiles {
+    /// The files for the output name `path`: `x.exr` gives `x.exr` and
+    /// `x.png`, and so does `x.png`, so that the HDR image is never lost.
+    ///
+    /// # Errors
+    /// For any other extension.
+    pub fn for_name(path: &Path) -> std::result::Result<Self, UnknownFormat> {
+        let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
+        match ext.as_deref() {
+            Some("exr" | "png") => Ok(OutputFiles {
+                exr: path.with_extension("exr"),
+                png: path.with_extension("png"),
+            }),
+            _ => Err(UnknownFormat(path.to_owned())),
+        }
+    }
+
+    /// Checks, before a render, that both files can be written: each is
+    /// opened for appending (created if missing, then removed again), so
+    /// that a bad path is found before hours of rendering, not after.
+    ///
+    /// # Errors
+    /// The first file that cannot be written, and why.
+    pub fn check_writable(&self) -> std::result::Result<(), String> {
+        for path in [&self.exr, &self.png] {
+            if path.is_dir() {
+                return Err(format!("{}: is a directory, not a file", path.display()));
+            }
+            let existed = path.exists();
+            std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(path)
+                .map_err(|e| format!("{}: cannot be written: {e}", path.display()))?;
+            if !existed {
+                // The file was only a probe; a failure to remove it is harmless.
+                let _ = std::fs::remove_file(path);
+            }
+        }
+        Ok(())
+    }
 }
 
 fn to_srgb(c: f32) -> u8 {
@@ -92,6 +199,40 @@ mod tests {
         );
         write_png(&dir.join("t.png"), 3, 2, &rgb, 0.0).unwrap();
         assert!(std::fs::metadata(dir.join("t.png")).unwrap().len() > 0);
+        // With counts, the colours read back the same and the mean is kept.
+        let counted = dir.join("c.exr");
+        write_exr_with_counts(&counted, 3, 2, &rgb, &[1, 2, 3, 4, 5, 6], 0.5).unwrap();
+        assert_eq!(read_exr(&counted).unwrap(), (3, 2, rgb.clone()));
+        assert_eq!(read_counts(&counted).unwrap(), Some(vec![1, 2, 3, 4, 5, 6]));
+        assert_eq!(read_counts(&path).unwrap(), None);
+        let meta = exr::meta::MetaData::read_from_file(&counted, false).unwrap();
+        let header = &meta.headers[0];
+        assert_eq!(header.channels.list.len(), 4);
+        let key = Text::new_or_panic("sppMean");
+        let mean = header.own_attributes.other.get(&key);
+        let mean = mean.or_else(|| header.shared_attributes.other.get(&key));
+        assert_eq!(mean, Some(&AttributeValue::F64(3.5)));
+    }
+
+    #[test]
+    fn outputs_are_named_by_extension_and_checked_first() {
+        let f = OutputFiles::for_name(Path::new("a/p.png")).unwrap();
+        assert_eq!(
+            (f.exr.to_str(), f.png.to_str()),
+            (Some("a/p.exr"), Some("a/p.png"))
+        );
+        assert!(OutputFiles::for_name(Path::new("x.EXR")).is_ok());
+        let e = OutputFiles::for_name(Path::new("a.jpg")).unwrap_err();
+        assert!(e.to_string().contains("a.jpg"), "{e}");
+        assert!(OutputFiles::for_name(Path::new("noext")).is_err());
+        let missing = OutputFiles::for_name(Path::new("/nonexistent-dir/x.exr")).unwrap();
+        let e = missing.check_writable().unwrap_err();
+        assert!(e.contains("/nonexistent-dir/x.exr"), "{e}");
+        let dir = std::env::temp_dir().join(format!("aether-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ok = OutputFiles::for_name(&dir.join("o.exr")).unwrap();
+        ok.check_writable().unwrap();
+        assert!(!ok.exr.exists(), "the probe leaves no file behind");
     }
 }
 
@@ -158,4 +299,29 @@ impl Comparison {
     pub fn relative_difference(&self) -> f64 {
         (self.mean - self.reference_mean) / self.reference_mean
     }
+}
+
+/// Reads the `samples` channel of an EXR file written by
+/// [`write_exr_with_counts`]: each pixel's sample count, row by row, or
+/// `None` if the file has no such channel.
+///
+/// # Errors
+/// If the file cannot be read as an EXR image.
+pub fn read_counts(path: &Path) -> std::result::Result<Option<Vec<u32>>, String> {
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| format!("{}: cannot read the EXR image: {e}", path.display()))?;
+    let channels = &image.layer_data.channel_data.list;
+    Ok(channels
+        .iter()
+        .find(|c| c.name == Text::new_or_panic("samples"))
+        .and_then(|c| match &c.sample_data {
+            FlatSamples::U32(v) => Some(v.clone()),
+            _ => None,
+        }))
 }

@@ -4,15 +4,10 @@
 //! flag (Ctrl-C) that keep what was rendered.
 
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use aether_core::Pcg32;
 use aether_strategies::scene::Scene;
-use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
-
-use aether_strategies::geometry::{ray_nanos, rays_cast};
 
 use crate::bdpt::Bdpt;
 use crate::direct::DirectLighting;
@@ -23,22 +18,25 @@ use crate::light::LightTracer;
 use crate::mlt::{MltSettings, Variant, render_mlt};
 use crate::path::PathTracer;
 
+use crate::rounds::render_rounds;
+pub use crate::rounds::{PixelSamples, Tile, TileRun, render_tiles, sample_stream};
+
 thread_local! {
     /// Each thread's splat list, reused from pixel to pixel so that light
     /// paths allocate only while it grows.
     static SCRATCH: std::cell::Cell<Splats> = const { std::cell::Cell::new(Vec::new()) };
 }
 
-/// Tiles are squares of this many pixels on a side.
-const TILE: u32 = 16;
-
 /// How to render.
 #[derive(Clone, Debug)]
 pub struct Settings {
     /// Samples per pixel.
     pub spp: u32,
-    /// Seed of every pixel's random stream.
+    /// Seed of every sample's random stream ([`sample_stream`]).
     pub seed: u64,
+    /// The index of each pixel's first sample: 0, but for a part of a
+    /// render (its samples are `first_sample .. first_sample + spp`).
+    pub first_sample: u32,
     /// Stop after this long, keeping what was rendered. The tiled
     /// integrators then render in rounds of growing samples per pixel, each
     /// round from its own seed, so that every pixel ends with about as many
@@ -67,6 +65,7 @@ impl Settings {
         Settings {
             spp,
             seed,
+            first_sample: 0,
             time_limit: None,
             threads: None,
             progress: false,
@@ -163,13 +162,15 @@ pub fn render_with(
     let (w, h) = (scene.film.width, scene.film.height);
     let film = Mutex::new(Film::new(w, h));
     let splats = SplatBuffer::new(w, h);
-    let rounds = render_rounds(settings, |_, this| {
-        let spp = this.spp;
-        let pixel = |[x, y]: [u32; 2], rng: &mut Pcg32| {
+    let [_, _, cw, ch] = scene.film.crop;
+    let pixels = u64::from(cw) * u64::from(ch);
+    let rounds = render_rounds(settings, pixels, |_, this, bar| {
+        let pixel = |p: [u32; 2], samples: PixelSamples<'_>| {
             let mut scratch = SCRATCH.take();
-            let (mut sum, mut dropped) = ([0.0f64; 3], 0u64);
-            for _ in 0..spp {
-                let c = estimator.sample([x, y], rng, &mut scratch).to_array();
+            let (mut sum, mut taken, mut dropped) = ([0.0f64; 3], 0u32, 0u64);
+            for mut rng in samples {
+                let c = estimator.sample(p, &mut rng, &mut scratch).to_array();
+                taken += 1;
                 if is_valid(c) {
                     for k in 0..3 {
                         sum[k] += f64::from(c[k]);
@@ -182,17 +183,17 @@ pub fn render_with(
                 }
             }
             SCRATCH.set(scratch);
-            (sum, dropped)
+            (sum, taken, dropped)
         };
-        let store = |tile: Tile<([f64; 3], u64)>| {
+        let store = |tile: Tile<([f64; 3], u32, u64)>| {
             let mut film = film
                 .lock()
                 .expect("no thread panics while holding the film");
-            for ([x, y], (sum, dropped)) in tile {
-                film.add_pixel(x, y, sum, spp, dropped);
+            for ([x, y], (sum, taken, dropped)) in tile {
+                film.add_pixel(x, y, sum, taken, dropped);
             }
         };
-        render_tiles(scene, this, stop, pixel, store)
+        render_tiles(scene, this, stop, bar, pixel, store)
     })?;
     let mut film = film.into_inner().expect("no thread panicked");
     let samples = film.samples();
@@ -204,181 +205,6 @@ pub fn render_with(
         rays: rounds.rays,
         ray_seconds: rounds.ray_seconds,
         complete: rounds.complete,
-    })
-}
-
-/// How a render in rounds went.
-pub(crate) struct Rounds {
-    /// Samples per pixel of the rounds kept (see [`render_rounds`]).
-    pub(crate) spp: u32,
-    pub(crate) rays: u64,
-    pub(crate) ray_seconds: f64,
-    pub(crate) seconds: f64,
-    /// False if time or a stop request ended the render early.
-    pub(crate) complete: bool,
-}
-
-/// Runs `round` (given the round's index and settings, returning its tile
-/// run) for each round of `settings` ([`Settings::time_limit`]) until its
-/// samples per pixel are taken, time runs out or a round is cut short.
-/// The rounds kept are every finished one and the first even if cut: a
-/// later round cut short is the caller's to keep or leave out.
-pub(crate) fn render_rounds(
-    settings: &Settings,
-    mut round: impl FnMut(u64, &Settings) -> Result<TileRun, String>,
-) -> Result<Rounds, String> {
-    let start = Instant::now();
-    let (mut done, mut rays, mut ray_seconds, mut cut) = (0u32, 0, 0.0, false);
-    for index in 0u64.. {
-        let Some(spp) = round_size(settings, done, start.elapsed()) else {
-            break;
-        };
-        let run = round(index, &round_settings(settings, index, spp, start))?;
-        (rays, ray_seconds) = (rays + run.rays, ray_seconds + run.ray_seconds);
-        if run.complete || index == 0 {
-            done += spp;
-        }
-        if !run.complete {
-            cut = true;
-            break;
-        }
-    }
-    Ok(Rounds {
-        spp: done,
-        rays,
-        ray_seconds,
-        seconds: start.elapsed().as_secs_f64(),
-        complete: !cut && done == settings.spp,
-    })
-}
-
-/// The samples per pixel of the next round of a render that has taken
-/// `done` of `settings.spp` in `elapsed`, or none when it is finished.
-/// Without a time limit, one round takes them all. With one, rounds grow
-/// from one sample per pixel to about half the time left, so that when
-/// time runs out every pixel has about as many samples as any other (and
-/// a huge `spp` means "until the time limit").
-fn round_size(settings: &Settings, done: u32, elapsed: Duration) -> Option<u32> {
-    let left = settings.spp - done;
-    match settings.time_limit {
-        _ if left == 0 => None,
-        None => Some(left),
-        Some(limit) if elapsed >= limit => None,
-        Some(_) if done == 0 => Some(1),
-        Some(limit) => {
-            let per_sample = elapsed.as_secs_f64() / f64::from(done);
-            let fits = (limit - elapsed).as_secs_f64() / per_sample / 2.0;
-            Some((fits as u32).clamp(1, left))
-        }
-    }
-}
-
-/// The settings of round `round` of `spp` samples per pixel, of a render
-/// that started at `start`: its own seed, and the time left.
-fn round_settings(settings: &Settings, round: u64, spp: u32, start: Instant) -> Settings {
-    Settings {
-        spp,
-        seed: round_seed(settings.seed, round),
-        time_limit: settings
-            .time_limit
-            .map(|t| t.saturating_sub(start.elapsed())),
-        ..settings.clone()
-    }
-}
-
-/// The seed of round `round` of a render: the render's own for the first
-/// (so a render without a time limit is one round with the seed asked
-/// for), distant and distinct ones after it.
-fn round_seed(seed: u64, round: u64) -> u64 {
-    seed.wrapping_add(round.wrapping_mul(0x9e37_79b9_7f4a_7c15))
-}
-
-/// A finished tile: each pixel with what was computed for it.
-pub type Tile<T> = Vec<([u32; 2], T)>;
-
-/// How a tiled render went.
-#[derive(Clone, Copy, Debug)]
-pub struct TileRun {
-    /// Wall-clock seconds.
-    pub seconds: f64,
-    /// Rays cast.
-    pub rays: u64,
-    /// Seconds spent casting them, summed over threads, when rays are timed
-    /// ([`aether_strategies::geometry::time_rays`]); zero otherwise.
-    pub ray_seconds: f64,
-    /// False if the time limit or a stop request cut the render short.
-    pub complete: bool,
-}
-
-/// The render loop shared by every integrator: the crop window's pixels by
-/// tiles in parallel, `pixel` run for each with the pixel's own random
-/// stream (from the seed and the pixel index only, so that the result does
-/// not depend on the threads), and each finished tile's results handed to
-/// `store`; with the settings' threads, progress bar, time limit and
-/// `stop` flag (tiles not yet started when time runs out are skipped).
-///
-/// # Errors
-/// If the worker threads cannot start.
-pub fn render_tiles<T: Send>(
-    scene: &Scene,
-    settings: &Settings,
-    stop: &AtomicBool,
-    pixel: impl Fn([u32; 2], &mut Pcg32) -> T + Sync,
-    store: impl Fn(Tile<T>) + Sync,
-) -> Result<TileRun, String> {
-    let w = scene.film.width;
-    let [cx, cy, cw, ch] = scene.film.crop;
-    let tiles: Vec<(u32, u32)> = (cy..cy + ch)
-        .step_by(TILE as usize)
-        .flat_map(|y| (cx..cx + cw).step_by(TILE as usize).map(move |x| (x, y)))
-        .collect();
-    let bar = if settings.progress {
-        ProgressBar::new(tiles.len() as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
-            .expect("valid template"),
-    );
-    let (rays, nanos) = (AtomicU64::new(0), AtomicU64::new(0));
-    let start = Instant::now();
-    let out_of_time = || {
-        stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
-    };
-    let pool = settings.pool()?;
-    let complete = pool.install(|| {
-        tiles
-            .par_iter()
-            .map(|&(tx, ty)| {
-                if out_of_time() {
-                    return false;
-                }
-                let (rays_before, nanos_before) = (rays_cast(), ray_nanos());
-                let mut local = Vec::new();
-                for y in ty..(ty + TILE).min(cy + ch) {
-                    for x in tx..(tx + TILE).min(cx + cw) {
-                        let stream = u64::from(y) * u64::from(w) + u64::from(x);
-                        let mut rng = Pcg32::new(settings.seed, stream);
-                        local.push(([x, y], pixel([x, y], &mut rng)));
-                    }
-                }
-                store(local);
-                rays.fetch_add(rays_cast() - rays_before, Ordering::Relaxed);
-                nanos.fetch_add(ray_nanos() - nanos_before, Ordering::Relaxed);
-                bar.inc(1);
-                true
-            })
-            .collect::<Vec<bool>>()
-            .into_iter()
-            .all(|done| done)
-    });
-    bar.finish_and_clear();
-    Ok(TileRun {
-        seconds: start.elapsed().as_secs_f64(),
-        rays: rays.load(Ordering::Relaxed),
-        ray_seconds: nanos.load(Ordering::Relaxed) as f64 * 1e-9,
-        complete,
     })
 }
 
@@ -434,7 +260,7 @@ pub fn render_passes(
     })
 }
 
-/// Runs `pass` with the settings of each pass (its own seed, no time limit
+/// Runs `pass` with the settings of each pass (its own samples, no time limit
 /// or progress bar) until `budget` has passed (at least once, and the pass
 /// under way is finished) or `stop` is set; returns the number of passes
 /// and the seconds they took.
@@ -451,8 +277,10 @@ pub fn repeat_passes(
     let mut passes = 0u32;
     while passes == 0 || (start.elapsed() < budget && !stop.load(Ordering::Relaxed)) {
         pass(&Settings {
-            // Distant, distinct seeds: each pass draws from fresh streams.
-            seed: round_seed(settings.seed, u64::from(passes)),
+            // Each pass takes the samples after the last pass's.
+            first_sample: settings
+                .first_sample
+                .saturating_add(passes.saturating_mul(settings.spp)),
             time_limit: None,
             progress: false,
             ..settings.clone()
@@ -466,6 +294,7 @@ pub fn repeat_passes(
 mod tests {
     use super::*;
     use crate::cornell::cornell_box;
+    use crate::rounds::round_size;
 
     #[test]
     fn same_seed_same_image_whatever_the_threads() {
@@ -543,13 +372,12 @@ mod tests {
         assert_eq!(r.samples, r.film.samples());
         assert!(r.samples >= 2 * 32 * 32, "{} samples", r.samples);
         assert!(r.film.image().iter().flatten().all(|v| v.is_finite()));
-        // The first round keeps the seed asked for; later ones get their own.
-        assert_eq!(round_seed(7, 0), 7);
-        assert_ne!(round_seed(7, 1), 7);
-        assert_eq!(
-            round_size(&Settings::new(10, 0), 0, Duration::ZERO),
-            Some(10)
-        );
+        // Without a time limit, rounds double: 1, 1, 2, 4, then what is left.
+        let plain = Settings::new(10, 0);
+        let sizes: Vec<Option<u32>> = [0, 1, 2, 4, 8, 10]
+            .map(|done| round_size(&plain, done, Duration::ZERO))
+            .into();
+        assert_eq!(sizes, [Some(1), Some(1), Some(2), Some(4), Some(2), None]);
         let timed = Settings {
             time_limit: Some(Duration::from_secs(10)),
             ..Settings::new(100, 0)

@@ -4,6 +4,8 @@
 //! and the statistical comparison of two integrators' images.
 #![deny(unsafe_code)]
 
+pub mod fuzz;
+
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 

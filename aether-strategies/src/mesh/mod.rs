@@ -27,16 +27,17 @@ pub struct TriangleMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// The largest coordinate a mesh vertex or a sphere may have, in world
+/// space: the BVH builder and the f32 ray arithmetic square extents, which
+/// must stay finite (1e12² = 1e24, far below f32's 3.4e38).
+pub const MAX_COORDINATE: f32 = 1e12;
+
 /// Why a mesh could not be loaded. Every variant names the file.
 #[derive(Debug)]
 pub enum MeshError {
-    /// The file could not be read.
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
+    /// The file could not be opened or read, or is not a regular file of a
+    /// mesh's size.
+    File(crate::files::FileError),
     /// The file is not a valid mesh of its format.
     Format {
         /// The file.
@@ -52,6 +53,18 @@ pub enum MeshError {
         mesh: String,
         /// The vertex.
         vertex: usize,
+    },
+    /// A vertex position is beyond [`MAX_COORDINATE`] (after the shape's
+    /// transform, where there is one).
+    OutOfBounds {
+        /// The file.
+        path: PathBuf,
+        /// The mesh in the file.
+        mesh: String,
+        /// The vertex.
+        vertex: usize,
+        /// Its position.
+        position: [f32; 3],
     },
     /// A triangle refers to a vertex that does not exist.
     IndexOutOfRange {
@@ -71,9 +84,17 @@ pub enum MeshError {
 impl fmt::Display for MeshError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            MeshError::Io { path, source } => {
-                write!(f, "{}: cannot read the mesh: {source}", path.display())
-            }
+            MeshError::File(e) => write!(f, "cannot read the mesh: {e}"),
+            MeshError::OutOfBounds {
+                path,
+                mesh,
+                vertex,
+                position,
+            } => write!(
+                f,
+                "{}: mesh '{mesh}': vertex {vertex} at {position:?} is beyond ±{MAX_COORDINATE:e}, the largest coordinate the ray tracer handles",
+                path.display()
+            ),
             MeshError::Format { path, message } => write!(f, "{}: {message}", path.display()),
             MeshError::NonFinite { path, mesh, vertex } => {
                 write!(
@@ -100,7 +121,7 @@ impl fmt::Display for MeshError {
 impl std::error::Error for MeshError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            MeshError::Io { source, .. } => Some(source),
+            MeshError::File(e) => Some(e),
             _ => None,
         }
     }
@@ -123,14 +144,23 @@ impl TriangleMesh {
         }
     }
 
-    /// Checks that positions are finite and indices in range; `path` names
-    /// the file in the error.
+    /// Checks that positions are finite and within [`MAX_COORDINATE`] and
+    /// indices in range; `path` names the file in the error.
     pub fn validate(&self, path: &Path) -> Result<(), MeshError> {
         if let Some(vertex) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(MeshError::NonFinite {
                 path: path.to_owned(),
                 mesh: self.name.clone(),
                 vertex,
+            });
+        }
+        let beyond = |p: &Vec3| p.abs().max_element() > MAX_COORDINATE;
+        if let Some(vertex) = self.positions.iter().position(beyond) {
+            return Err(MeshError::OutOfBounds {
+                path: path.to_owned(),
+                mesh: self.name.clone(),
+                vertex,
+                position: self.positions[vertex].to_array(),
             });
         }
         let n = self.positions.len();

@@ -3,6 +3,7 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 
 use super::{MeshError, TriangleMesh};
+use crate::files::{MAX_IMAGE_BYTES, MAX_MESH_BYTES, open_regular};
 
 /// A material from an OBJ file's MTL library: its diffuse colour and map.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,16 +31,20 @@ pub fn load_obj_with_materials(path: &Path) -> Result<(TriangleMesh, Vec<ObjMate
         single_index: true,
         ..tobj::LoadOptions::default()
     };
-    let (models, materials) = tobj::load_obj(path, &options).map_err(|e| match e {
-        tobj::LoadError::OpenFileFailed => MeshError::Io {
+    let mut reader = open_regular(path, MAX_MESH_BYTES).map_err(MeshError::File)?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    // The library is read as the mesh is: a device named by `mtllib` is
+    // refused like one named as the mesh (and then no material is used).
+    let library = |name: &Path| {
+        let mut reader = open_regular(&folder.join(name), MAX_IMAGE_BYTES)
+            .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        tobj::load_mtl_buf(&mut reader)
+    };
+    let (models, materials) =
+        tobj::load_obj_buf(&mut reader, &options, library).map_err(|e| MeshError::Format {
             path: path.to_owned(),
-            source: std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open the file"),
-        },
-        other => MeshError::Format {
-            path: path.to_owned(),
-            message: format!("not a valid OBJ file: {other}"),
-        },
-    })?;
+            message: format!("not a valid OBJ file: {e}"),
+        })?;
     let mut mesh = TriangleMesh {
         name: path
             .file_stem()
@@ -81,7 +86,6 @@ pub fn load_obj_with_materials(path: &Path) -> Result<(TriangleMesh, Vec<ObjMate
         });
     }
     mesh.validate(path)?;
-    let folder = path.parent().unwrap_or(Path::new("."));
     let materials = materials
         .unwrap_or_default()
         .into_iter()

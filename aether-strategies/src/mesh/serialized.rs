@@ -8,6 +8,7 @@ use flate2::read::ZlibDecoder;
 use glam::{Vec2, Vec3};
 
 use super::{MeshError, TriangleMesh};
+use crate::files::{MAX_MESH_BYTES, read_regular};
 
 const MAGIC: u16 = 0x041C;
 const HAS_NORMALS: u32 = 0x0001;
@@ -25,10 +26,7 @@ fn format_error(path: &Path, message: impl Into<String>) -> MeshError {
 
 /// The file's bytes and the offsets of its meshes.
 fn table(path: &Path) -> Result<(Vec<u8>, u16, Vec<usize>), MeshError> {
-    let bytes = std::fs::read(path).map_err(|source| MeshError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let bytes = read_regular(path, MAX_MESH_BYTES).map_err(MeshError::File)?;
     let u16_at = |o: usize| {
         bytes
             .get(o..o + 2)

@@ -7,10 +7,13 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 
-use super::xml::{Category, Object, SceneError, Value, Warning, read_scene};
+use super::xml::{Category, Object, SceneError, Value, Warning, read_scene, read_scene_str};
 use crate::bitmap::Bitmap;
+use crate::files::{MAX_IMAGE_BYTES, check_regular};
 use crate::geometry::{Geometry, Sphere};
-use crate::mesh::{ObjMaterial, TriangleMesh, load_obj_with_materials, load_serialized};
+use crate::mesh::{
+    MAX_COORDINATE, ObjMaterial, TriangleMesh, load_obj_with_materials, load_serialized,
+};
 use crate::spectrum::{SpectrumKind, to_linear_rgb};
 
 /// A spatially varying or constant colour parameter.
@@ -220,14 +223,74 @@ pub struct Film {
     pub spp: u32,
 }
 
+/// A film over [`Film::MAX_PIXELS`] pixels: the render would not fit in
+/// memory, or take longer than anyone would wait.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FilmTooLarge {
+    /// The width asked for.
+    pub width: u64,
+    /// The height asked for.
+    pub height: u64,
+}
+
+impl std::fmt::Display for FilmTooLarge {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let pixels = self.width as f64 * self.height as f64;
+        write!(
+            f,
+            "a {}×{} film ({pixels:.3e} pixels) is over the limit of {} pixels (8192²): its buffers would need {:.1} GiB",
+            self.width,
+            self.height,
+            Film::MAX_PIXELS,
+            pixels * Film::BYTES_PER_PIXEL as f64 / f64::from(1u32 << 30)
+        )
+    }
+}
+
+impl std::error::Error for FilmTooLarge {}
+
 impl Film {
+    /// The most pixels a film may have: 8192², whose buffers take about
+    /// 3.5 GiB.
+    pub const MAX_PIXELS: u64 = 1 << 26;
+
+    /// Bytes a render holds per pixel: the sums (f64 RGB) and count of the
+    /// camera samples, the splat buffer (f64 RGB), the image (f32 RGB) and
+    /// its preview.
+    pub const BYTES_PER_PIXEL: u64 = 24 + 4 + 24 + 12 + 3;
+
+    /// Checks that a `width` × `height` film is within
+    /// [`Film::MAX_PIXELS`].
+    ///
+    /// # Errors
+    /// If it is not.
+    pub fn check_size(width: u64, height: u64) -> Result<(), FilmTooLarge> {
+        match width.checked_mul(height) {
+            Some(n) if n <= Self::MAX_PIXELS => Ok(()),
+            _ => Err(FilmTooLarge { width, height }),
+        }
+    }
+
     /// Resizes the film to `width` pixels (at least one), the height
     /// keeping the aspect ratio; the crop window becomes the whole film.
-    pub fn scale_to_width(&mut self, width: u32) {
+    ///
+    /// # Errors
+    /// If the film would be over [`Film::MAX_PIXELS`]; it is then unchanged.
+    pub fn scale_to_width(&mut self, width: u32) -> Result<(), FilmTooLarge> {
         let aspect = f64::from(self.height) / f64::from(self.width);
-        self.width = width.max(1);
-        self.height = ((f64::from(self.width) * aspect).round() as u32).max(1);
-        self.crop = [0, 0, self.width, self.height];
+        let width = width.max(1);
+        let height = (f64::from(width) * aspect).round().max(1.0);
+        if height > f64::from(u32::MAX) {
+            return Err(FilmTooLarge {
+                width: u64::from(width),
+                height: height as u64,
+            });
+        }
+        let height = height as u32;
+        Film::check_size(u64::from(width), u64::from(height))?;
+        (self.width, self.height) = (width, height);
+        self.crop = [0, 0, width, height];
+        Ok(())
     }
 }
 
@@ -346,8 +409,28 @@ pub struct Scene {
 
 impl Scene {
     /// Loads a Mitsuba scene file.
+    ///
+    /// # Errors
+    /// Anything that keeps the file from being read or rendered, with the
+    /// file, line and element it is about.
     pub fn load(path: &Path, params: &HashMap<String, String>) -> Result<Scene, SceneError> {
-        let file = read_scene(path, params)?;
+        Self::from_file(read_scene(path, params)?)
+    }
+
+    /// Loads a scene from `text`, as if it were the file `path` (relative
+    /// paths inside resolve against its folder).
+    ///
+    /// # Errors
+    /// As [`Scene::load`].
+    pub fn load_str(
+        text: &str,
+        path: &Path,
+        params: &HashMap<String, String>,
+    ) -> Result<Scene, SceneError> {
+        Self::from_file(read_scene_str(text, path, params)?)
+    }
+
+    fn from_file(file: super::xml::SceneFile) -> Result<Scene, SceneError> {
         let mut loader = Loader {
             portals: Vec::new(),
             meshes: Vec::new(),
@@ -418,6 +501,12 @@ impl Scene {
             )
         }) {
             loader.warnings.extend(child.unread());
+        }
+        if !loader.emitters.is_empty() && loader.emitters.iter().all(is_black) {
+            loader.warnings.push(Warning {
+                location: root.location.clone(),
+                message: "every emitter of the scene emits nothing (zero radiance, intensity or scale): the image will be black".to_string(),
+            });
         }
         let Loader {
             meshes,
@@ -492,6 +581,37 @@ fn color(
             )));
         }
     })
+}
+
+/// An emitter's colour `name` (1 by default) times `scale`: each channel
+/// finite and ≥ 0, as negative emission has no meaning and renders black.
+fn emission(o: &Object, name: &str, scale: f32) -> Result<[f32; 3], SceneError> {
+    let c = color(o, name, [1.0; 3], SpectrumKind::Emission)?;
+    if c.iter().any(|&x| x < 0.0) {
+        return Err(o.error(format!(
+            "'{name}' {c:?} has a negative channel: emission must be ≥ 0 (negative emission renders black)"
+        )));
+    }
+    let scaled = c.map(|x| x * scale);
+    if scaled.iter().any(|x| !x.is_finite()) {
+        return Err(o.error(format!(
+            "'{name}' {c:?} times 'scale' {scale} is beyond the largest number a radiance may have"
+        )));
+    }
+    Ok(scaled)
+}
+
+/// Whether an emitter emits nothing at all.
+fn is_black(e: &Emitter) -> bool {
+    let zero = |c: &[f32; 3]| c.iter().all(|&x| x == 0.0);
+    match e {
+        Emitter::Area { radiance, .. } | Emitter::Constant { radiance } => zero(radiance),
+        Emitter::Point { intensity, .. } | Emitter::Spot { intensity, .. } => zero(intensity),
+        Emitter::Directional { irradiance, .. } => zero(irradiance),
+        Emitter::EnvMap { scale, image, .. } => {
+            *scale == 0.0 || image.texels.iter().all(zero)
+        }
+    }
 }
 
 fn positive(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
@@ -579,9 +699,8 @@ fn texture_object(t: &Object) -> Result<Texture, SceneError> {
                 .parent()
                 .unwrap_or(Path::new("."))
                 .join(file);
-            if !path.is_file() {
-                return Err(t.error(format!("the image {} does not exist", path.display())));
-            }
+            check_regular(&path, MAX_IMAGE_BYTES)
+                .map_err(|e| t.error(format!("the image: {e}")))?;
             let s = t.float("uvscale", 1.0)? as f32;
             let uv_scale = [
                 t.float("uscale", f64::from(s))? as f32,
@@ -744,7 +863,11 @@ impl Loader {
                 let radius = positive(o, "radius", 1.0)?;
                 let c = to_world.transform_point3(center);
                 let scale = to_world.transform_vector3(Vec3::X).length();
-                Err(Sphere { center: c, radius: radius * scale })
+                let radius = radius * scale;
+                if !(c.is_finite() && radius.is_finite()) || c.abs().max_element() + radius > MAX_COORDINATE {
+                    return Err(o.error(format!("the sphere at {c} of radius {radius} reaches beyond ±{MAX_COORDINATE:e}, the largest coordinate the ray tracer handles")));
+                }
+                Err(Sphere { center: c, radius })
             }
             other => return Err(o.error(format!("the shape type '{other}' is not supported (obj, serialized, sphere, rectangle, cube)"))),
         };
@@ -850,14 +973,20 @@ impl Loader {
     }
 
     fn emitter(&mut self, o: &Object, shape: Option<usize>) -> Result<Emitter, SceneError> {
-        let scale = o.float("scale", 1.0)? as f32;
-        let scaled = |c: [f32; 3]| c.map(|x| x * scale);
+        let scale = o.float("scale", 1.0)?;
+        if scale < 0.0 {
+            return Err(o.error(format!(
+                "'scale' must be ≥ 0, not {scale}: negative emission renders black"
+            )));
+        }
+        let scale = scale as f32;
+        let scaled = |name: &str| emission(o, name, scale);
         Ok(match o.kind.as_str() {
             "area" => {
                 let shape =
                     shape.ok_or_else(|| o.error("an area emitter must be nested in a <shape>"))?;
                 Emitter::Area {
-                    radiance: scaled(color(o, "radiance", [1.0; 3], SpectrumKind::Emission)?),
+                    radiance: scaled("radiance")?,
                     shape,
                 }
             }
@@ -865,11 +994,11 @@ impl Loader {
                 position: o
                     .transform("toWorld")?
                     .transform_point3(o.point("position", Vec3::ZERO)?),
-                intensity: scaled(color(o, "intensity", [1.0; 3], SpectrumKind::Emission)?),
+                intensity: scaled("intensity")?,
             },
             "spot" => Emitter::Spot {
                 to_world: o.transform("toWorld")?,
-                intensity: scaled(color(o, "intensity", [1.0; 3], SpectrumKind::Emission)?),
+                intensity: scaled("intensity")?,
                 cutoff_angle: o.float("cutoffAngle", 20.0)? as f32,
                 beam_width: o.float("beamWidth", o.float("cutoffAngle", 20.0)? * 0.75)? as f32,
             },
@@ -878,10 +1007,10 @@ impl Loader {
                     .transform("toWorld")?
                     .transform_vector3(o.point("direction", Vec3::Z)?)
                     .normalize_or_zero(),
-                irradiance: scaled(color(o, "irradiance", [1.0; 3], SpectrumKind::Emission)?),
+                irradiance: scaled("irradiance")?,
             },
             "constant" => Emitter::Constant {
-                radiance: scaled(color(o, "radiance", [1.0; 3], SpectrumKind::Emission)?),
+                radiance: scaled("radiance")?,
             },
             "envmap" => {
                 let name = o
@@ -893,12 +1022,8 @@ impl Loader {
                     .parent()
                     .unwrap_or(Path::new("."))
                     .join(name);
-                if !path.is_file() {
-                    return Err(o.error(format!(
-                        "the environment map {} does not exist",
-                        path.display()
-                    )));
-                }
+                check_regular(&path, MAX_IMAGE_BYTES)
+                    .map_err(|e| o.error(format!("the environment map: {e}")))?;
                 let image = Arc::new(Bitmap::load(&path).map_err(|e| o.error(e))?);
                 Emitter::EnvMap {
                     path,
@@ -976,6 +1101,10 @@ fn camera_and_film(sensor: &Object) -> Result<(Camera, Film), SceneError> {
         })
     };
     let (width, height) = (size("width", 768)?, size("height", 576)?);
+    Film::check_size(u64::from(width), u64::from(height)).map_err(|e| match film {
+        Some(f) => f.error(e.to_string()),
+        None => sensor.error(e.to_string()),
+    })?;
     let crop = match film {
         Some(f) => [
             f.integer("cropOffsetX", 0)?,

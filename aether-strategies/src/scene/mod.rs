@@ -8,6 +8,6 @@ mod load;
 pub mod xml;
 
 pub use load::{
-    Camera, Emitter, Film, GradientSettings, IntegratorSettings, Material, MetropolisSettings,
-    MicrofacetKind, Roughness, Scene, Shape, Texture,
+    Camera, Emitter, Film, FilmTooLarge, GradientSettings, IntegratorSettings, Material,
+    MetropolisSettings, MicrofacetKind, Roughness, Scene, Shape, Texture,
 };

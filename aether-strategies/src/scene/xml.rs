@@ -7,20 +7,30 @@ use std::sync::Arc;
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
+use crate::files::{MAX_SCENE_BYTES, check_regular, read_regular};
+
 /// Where something was declared.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Location {
     /// The file.
     pub file: Arc<Path>,
-    /// The 1-based line.
+    /// The 1-based line, or 0 for the file as a whole (one that cannot be
+    /// read at all).
     pub line: u32,
 }
 
 impl fmt::Display for Location {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}", self.file.display(), self.line)
+        match self.line {
+            0 => write!(f, "{}", self.file.display()),
+            line => write!(f, "{}:{line}", self.file.display()),
+        }
     }
 }
+
+/// The deepest nesting of elements read: far deeper than any scene needs,
+/// shallow enough that reading it cannot overflow the stack.
+pub const MAX_NESTING: usize = 100;
 
 /// A scene that could not be read: the file, the line, the element and why.
 #[derive(Clone, Debug, PartialEq)]
@@ -230,7 +240,10 @@ impl Object {
     #[must_use]
     pub fn describe(&self) -> String {
         let tag = format!("{:?}", self.category).to_lowercase();
-        let mut s = format!("<{tag} type=\"{}\"", self.kind);
+        let mut s = match self.kind.as_str() {
+            "" => format!("<{tag}"),
+            kind => format!("<{tag} type=\"{kind}\""),
+        };
         if let Some(id) = &self.id {
             s += &format!(" id=\"{id}\"");
         }
@@ -406,6 +419,7 @@ pub fn read_scene(path: &Path, params: &HashMap<String, String>) -> Result<Scene
         ids: HashMap::new(),
         warnings: Vec::new(),
         include_stack: Vec::new(),
+        depth: 0,
     };
     let root = reader.file(path)?;
     Ok(SceneFile {
@@ -426,6 +440,7 @@ pub fn read_scene_str(
         ids: HashMap::new(),
         warnings: Vec::new(),
         include_stack: Vec::new(),
+        depth: 0,
     };
     let root = reader.text(text, path)?;
     Ok(SceneFile {
@@ -439,6 +454,8 @@ struct Reader {
     ids: HashMap<String, Arc<Object>>,
     warnings: Vec<Warning>,
     include_stack: Vec<PathBuf>,
+    /// Objects open around the one being read.
+    depth: usize,
 }
 
 /// Context for errors inside one file.
@@ -476,27 +493,56 @@ fn describe(node: roxmltree::Node<'_, '_>) -> String {
 
 impl Reader {
     fn file(&mut self, path: &Path) -> Result<Object, SceneError> {
-        let location = Location {
-            file: Arc::from(path),
-            line: 1,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-            location,
+        let at = |line: u32, message: String| SceneError {
+            location: Location {
+                file: Arc::from(path),
+                line,
+            },
             element: String::new(),
-            message: format!("cannot read the scene file: {e}"),
+            message,
+        };
+        let bytes = read_regular(path, MAX_SCENE_BYTES)
+            .map_err(|e| at(0, format!("cannot read the scene file: {e}")))?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let offset = e.utf8_error().valid_up_to();
+            let before = &e.as_bytes()[..offset];
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            let column = offset
+                - before
+                    .iter()
+                    .rposition(|&b| b == b'\n')
+                    .map_or(0, |i| i + 1)
+                + 1;
+            at(
+                u32::try_from(line).unwrap_or(u32::MAX),
+                format!(
+                    "invalid UTF-8 at byte {offset} (column {column}): a scene file is UTF-8 text"
+                ),
+            )
         })?;
         self.text(&text, path)
     }
 
     fn text(&mut self, text: &str, path: &Path) -> Result<Object, SceneError> {
         let file: Arc<Path> = Arc::from(path);
-        let doc = roxmltree::Document::parse(text).map_err(|e| SceneError {
-            location: Location {
-                file: file.clone(),
-                line: e.pos().row,
-            },
-            element: String::new(),
-            message: format!("malformed XML: {e}"),
+        let doc = roxmltree::Document::parse(text).map_err(|e| {
+            // The parser places an early end at the start: it is at the end.
+            let (line, message) = match e {
+                roxmltree::Error::UnexpectedEndOfStream => (
+                    text.lines().count().max(1) as u32,
+                    "the file ends inside an element: it is truncated or an element is not closed"
+                        .to_string(),
+                ),
+                e => (e.pos().row, format!("malformed XML: {e}")),
+            };
+            SceneError {
+                location: Location {
+                    file: file.clone(),
+                    line,
+                },
+                element: String::new(),
+                message,
+            }
         })?;
         let cx = Context { file, doc: &doc };
         let root = doc.root_element();
@@ -611,12 +657,8 @@ impl Reader {
                     if self.include_stack.contains(&path) {
                         return Err(cx.error(child, format!("{} includes itself", path.display())));
                     }
-                    if !path.is_file() {
-                        return Err(cx.error(
-                            child,
-                            format!("the included file {} does not exist", path.display()),
-                        ));
-                    }
+                    check_regular(&path, MAX_SCENE_BYTES)
+                        .map_err(|e| cx.error(child, format!("the included file: {e}")))?;
                     self.include_stack.push(path.clone());
                     let included = self.file(&path);
                     self.include_stack.pop();
@@ -679,7 +721,16 @@ impl Reader {
             location: cx.location(node),
             read: ReadMarks::default(),
         };
-        self.body(cx, node, &mut object)?;
+        if self.depth >= MAX_NESTING {
+            return Err(cx.error(
+                node,
+                format!("objects are nested more than {MAX_NESTING} deep"),
+            ));
+        }
+        self.depth += 1;
+        let body = self.body(cx, node, &mut object);
+        self.depth -= 1;
+        body?;
         Ok(object)
     }
 

@@ -224,6 +224,9 @@ pub(crate) fn run_chains<S: Sampler>(
         let fs: Vec<f64> = (0..bootstrap as u64)
             .into_par_iter()
             .map(|i| {
+                if out_of_time() {
+                    return 0.0;
+                }
                 let (rays, nanos) = (rays_cast(), ray_nanos());
                 let f = sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i));
                 boot_rays.fetch_add(rays_cast() - rays, Ordering::Relaxed);
@@ -244,6 +247,11 @@ pub(crate) fn run_chains<S: Sampler>(
             *sum /= cumulative[c].len().max(1) as f64;
         }
         let b_total: f64 = b.iter().sum();
+        if out_of_time() {
+            // Stopped during the bootstrap: no chain has started.
+            let black = vec![[0.0f64; 3]; w as usize * h as usize];
+            return Ok((black, 0, boot_rays.into_inner(), boot_nanos.into_inner()));
+        }
         if !(b_total > 0.0 && b_total.is_finite()) {
             return Err("no bootstrap sample carries light: the image is black".to_string());
         }
