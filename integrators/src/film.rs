@@ -5,6 +5,34 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+/// The image of camera-sample `sums` over their per-pixel `counts` (black
+/// where nothing was rendered), plus light paths' splatted sums over their
+/// number: a render's image, and a merge's of its parts.
+#[must_use]
+pub fn camera_image(
+    sums: &[[f64; 3]],
+    counts: &[u32],
+    splats: Option<(&[[f64; 3]], u64)>,
+) -> Vec<[f32; 3]> {
+    sums.iter()
+        .zip(counts)
+        .enumerate()
+        .map(|(i, (s, &n))| {
+            let c = match n {
+                0 => [0.0; 3],
+                n => s.map(|c| (c / f64::from(n)) as f32),
+            };
+            match splats {
+                Some((splat, paths)) if paths > 0 => {
+                    let scale = 1.0 / paths as f64;
+                    [0, 1, 2].map(|k| c[k] + (splat[i][k] * scale) as f32)
+                }
+                _ => c,
+            }
+        })
+        .collect()
+}
+
 /// Accumulated radiance per pixel, and the samples that were dropped.
 #[derive(Debug)]
 pub struct Film {
@@ -14,7 +42,8 @@ pub struct Film {
     pub height: u32,
     sums: Vec<[f64; 3]>,
     counts: Vec<u32>,
-    splats: Option<Vec<[f32; 3]>>,
+    /// The light paths' splatted sums and the number of light paths.
+    splats: Option<(Vec<[f64; 3]>, u64)>,
     dropped: AtomicU64,
 }
 
@@ -69,29 +98,27 @@ impl Film {
         if samples == 0 {
             return;
         }
-        self.splats = Some(splats.image(1.0 / samples as f64));
+        self.splats = Some((splats.sums(), samples));
         self.dropped.fetch_add(splats.dropped(), Ordering::Relaxed);
     }
 
     /// The image: mean radiance per pixel (black where nothing was rendered).
     #[must_use]
     pub fn image(&self) -> Vec<[f32; 3]> {
-        self.sums
-            .iter()
-            .zip(&self.counts)
-            .map(|(s, &n)| {
-                if n == 0 {
-                    [0.0; 3]
-                } else {
-                    s.map(|c| (c / f64::from(n)) as f32)
-                }
-            })
-            .zip(0..)
-            .map(|(c, i)| match &self.splats {
-                Some(splats) => [0, 1, 2].map(|k| c[k] + splats[i][k]),
-                None => c,
-            })
-            .collect()
+        let splats = self.splats.as_ref().map(|(s, n)| (s.as_slice(), *n));
+        camera_image(&self.sums, &self.counts, splats)
+    }
+
+    /// The camera samples' sums per pixel, row by row.
+    #[must_use]
+    pub fn sums(&self) -> &[[f64; 3]] {
+        &self.sums
+    }
+
+    /// The light paths' splatted sums and their number, if any were splatted.
+    #[must_use]
+    pub fn splat_sums(&self) -> Option<(&[[f64; 3]], u64)> {
+        self.splats.as_ref().map(|(s, n)| (s.as_slice(), *n))
     }
 
     /// Adds the sum of `samples` radiance values to pixel (x, y), after
@@ -176,6 +203,15 @@ impl SplatBuffer {
                 }
             }
         }
+    }
+
+    /// The splatted sums, pixel by pixel.
+    #[must_use]
+    pub fn sums(&self) -> Vec<[f64; 3]> {
+        self.values
+            .chunks(3)
+            .map(|c| [0, 1, 2].map(|k| f64::from_bits(c[k].load(Ordering::Relaxed))))
+            .collect()
     }
 
     /// The splatted sums, scaled by `scale` (one over the number of light paths per pixel).

@@ -46,6 +46,7 @@ use crate::path::techniques;
 use crate::poisson::{Norm, reconstruct};
 use crate::render::{PixelSamples, Rendered, Settings, Tile, render_tiles, repeat_passes};
 use crate::rounds::render_rounds;
+use crate::shard::Partial;
 
 thread_local! {
     /// Density factors of one sample's base and offset paths: the offsets
@@ -410,6 +411,9 @@ pub struct Gradients {
     pub complete: bool,
     /// Which pixels were rendered.
     pub rendered: Vec<bool>,
+    /// What a merge with the render's other parts needs: each pixel's
+    /// pair sums and count (of the first pass, for passes).
+    pub partial: Partial,
 }
 
 impl Gradients {
@@ -456,6 +460,7 @@ impl Gradients {
             rays: self.rays,
             ray_seconds: self.ray_seconds,
             complete: self.complete,
+            partial: self.partial.clone(),
         }
     }
 }
@@ -524,6 +529,55 @@ pub fn render_gradients(
         Ok(run)
     })?;
     let done = rounds.spp;
+    let [primal, dx, dy] = pair_images(w, h, &sums, done);
+    let mut partial = Partial::new(w, h);
+    for d in 0..4 {
+        let base: Vec<[f64; 3]> = sums
+            .iter()
+            .map(|s| s.as_ref().map_or([0.0; 3], |s| s.base[d].to_array()))
+            .collect();
+        let offset: Vec<[f64; 3]> = sums
+            .iter()
+            .map(|s| s.as_ref().map_or([0.0; 3], |s| s.offset[d].to_array()))
+            .collect();
+        partial.put_rgb(&format!("base{d}"), &base);
+        partial.put_rgb(&format!("offset{d}"), &offset);
+    }
+    let counts = sums
+        .iter()
+        .map(|s| if s.is_some() { f64::from(done) } else { 0.0 });
+    partial.planes.insert("samples".into(), counts.collect());
+    let gradient = &scene.integrator.gradient;
+    partial
+        .same
+        .insert("gpt.l1".into(), gradient.l1.to_string());
+    partial
+        .same
+        .insert("gpt.alpha".into(), gradient.alpha.to_string());
+    let dropped = dropped.into_inner().expect("no thread panicked");
+    partial.totals.insert("dropped".into(), dropped as f64);
+    Ok(Gradients {
+        width: w,
+        height: h,
+        primal,
+        dx,
+        dy,
+        seconds: rounds.seconds,
+        samples: sums.iter().flatten().count() as u64 * u64::from(done),
+        rays: rounds.rays,
+        ray_seconds: rounds.ray_seconds,
+        dropped,
+        complete: rounds.complete,
+        rendered: sums.iter().map(Option::is_some).collect(),
+        partial,
+    })
+}
+
+/// The primal image and the two gradient images of a `w` × `h` film from
+/// each pixel's pair sums over `done` samples (`None`: not rendered): each
+/// pair of neighbours estimates both pixels and their difference.
+#[must_use]
+pub fn pair_images(w: u32, h: u32, sums: &[Option<PairSums>], done: u32) -> [Vec<[f32; 3]>; 3] {
     let spp = f64::from(done.max(1));
     let at = |x: i64, y: i64| -> Option<&PairSums> {
         if x < 0 || y < 0 || x >= i64::from(w) || y >= i64::from(h) {
@@ -531,20 +585,7 @@ pub fn render_gradients(
         }
         sums[(y * i64::from(w) + x) as usize].as_ref()
     };
-    let mut g = Gradients {
-        width: w,
-        height: h,
-        primal: vec![[0.0; 3]; sums.len()],
-        dx: vec![[0.0; 3]; sums.len()],
-        dy: vec![[0.0; 3]; sums.len()],
-        seconds: rounds.seconds,
-        samples: sums.iter().flatten().count() as u64 * u64::from(done),
-        rays: rounds.rays,
-        ray_seconds: rounds.ray_seconds,
-        dropped: dropped.into_inner().expect("no thread panicked"),
-        complete: rounds.complete,
-        rendered: sums.iter().map(Option::is_some).collect(),
-    };
+    let mut images = [(); 3].map(|()| vec![[0.0f32; 3]; sums.len()]);
     let rgb = |v: DVec3| (v / spp).as_vec3().to_array();
     for y in 0..i64::from(h) {
         for x in 0..i64::from(w) {
@@ -563,16 +604,15 @@ pub fn render_gradients(
                 if d == 1 || d == 3 {
                     let difference =
                         (own.offset[d] + other.base[d ^ 1]) - (own.base[d] + other.offset[d ^ 1]);
-                    let image = if d == 1 { &mut g.dx } else { &mut g.dy };
-                    image[i] = rgb(difference);
+                    images[if d == 1 { 1 } else { 2 }][i] = rgb(difference);
                 }
             }
             if pairs > 0.0 {
-                g.primal[i] = rgb(primal / pairs);
+                images[0][i] = rgb(primal / pairs);
             }
         }
     }
-    Ok(g)
+    images
 }
 
 /// Renders whole passes of gradients until `budget` has passed, as

@@ -27,10 +27,13 @@ pub mod gradient;
 pub mod light;
 pub mod mlt;
 pub mod output;
+pub mod parts;
 pub mod path;
 pub mod poisson;
 pub mod render;
 pub mod rounds;
+pub mod shard;
+pub mod shard_file;
 pub mod techniques;
 
 pub use aether_strategies as strategies;

@@ -16,7 +16,10 @@ use integrators::mlt::{MltSettings, Variant, render_mlt};
 use integrators::output::{
     Comparison, OutputFiles, read_exr, write_exr, write_exr_with_counts, write_png,
 };
+use integrators::parts::put_render;
 use integrators::render::{Settings, render, render_with};
+use integrators::shard::Shard;
+use integrators::shard_file::{merge_files, write_part};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -40,6 +43,49 @@ enum Command {
         /// Images of the same size.
         images: Vec<PathBuf>,
     },
+    /// Merge the parts of a render (`render --shard K/N`) into its image.
+    Merge {
+        /// The image to write (`x.exr` or `x.png`, the other beside it).
+        output: PathBuf,
+        /// The parts, in any order.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Merge the parts given even if some are missing.
+        #[arg(long)]
+        partial: bool,
+        /// Overwrite an existing output.
+        #[arg(long)]
+        force: bool,
+        /// Exposure of the PNG preview, in stops.
+        #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+        exposure: f32,
+    },
+}
+
+fn merge(
+    output: &std::path::Path,
+    parts: &[PathBuf],
+    partial: bool,
+    force: bool,
+    exposure: f32,
+) -> Result<(), String> {
+    let report = merge_files(output, parts, partial, force, exposure)?;
+    let names: Vec<String> = report
+        .written
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    println!(
+        "{}: {} parts, {:.0} samples{}",
+        names.join(", "),
+        parts.len(),
+        report.samples,
+        match report.fraction {
+            f if f < 1.0 => format!(" ({:.1} % of the render's parts)", 100.0 * f),
+            _ => String::new(),
+        }
+    );
+    Ok(())
 }
 
 fn compare(reference: &std::path::Path, images: &[PathBuf]) -> Result<(), String> {
@@ -148,6 +194,11 @@ struct RenderArgs {
     /// Film width and height for the built-in scene.
     #[arg(long, default_value_t = 512)]
     size: u32,
+    /// Render part K of N (K from 0) and write it, with what a merge needs,
+    /// to the output (see `aether merge`): a share of every pixel's
+    /// samples, or of the Metropolis chains.
+    #[arg(long)]
+    shard: Option<Shard>,
     /// Film width for a scene file (the height keeps its aspect ratio; the
     /// crop window becomes the whole film).
     #[arg(long)]
@@ -260,6 +311,7 @@ fn render_scene(
         spp: scene.film.spp,
         seed: args.seed,
         first_sample: 0,
+        shard: args.shard.unwrap_or(Shard::WHOLE),
         time_limit,
         threads: args.threads,
         progress: true,
@@ -282,7 +334,11 @@ fn render_scene(
             "--large-step must be in [0, 1], --chains and --bootstrap positive".to_string(),
         );
     }
+    let described = format!("spp={} {mlt:?}", scene.film.spp);
     let r = match &args.techniques {
+        Some(_) if args.shard.is_some() => {
+            return Err("--techniques and --shard cannot be combined".to_string());
+        }
         Some(dir) => {
             let bdpt = match scene.integrator.name.as_str() {
                 "bdpt" | "tridir" => Bdpt::for_scene(&scene)?,
@@ -305,7 +361,11 @@ fn render_scene(
     let pixels = r.film.rendered_pixels().max(1) as u64;
     let metropolis = Variant::named(&scene.integrator.name).is_some();
     let (exr, png) = (&outputs.exr, &outputs.png);
-    if metropolis {
+    if let Some(shard) = args.shard {
+        let mut partial = r.partial;
+        put_render(&mut partial, &scene, &described, args.seed);
+        write_part(exr, shard, &partial, &image)?;
+    } else if metropolis {
         // Chains splat everywhere: the file says mutations per pixel.
         let spp = u32::try_from(r.samples / pixels).unwrap_or(u32::MAX);
         write_exr(exr, w, h, &image, spp, r.seconds)?;
@@ -371,6 +431,16 @@ fn run_gradients(
     let output = outputs.exr.as_path();
     let tracer = GradientPathTracer::new(scene)?;
     let g = render_gradients(scene, &tracer, settings, stop)?;
+    if settings.shard != Shard::WHOLE {
+        let mut partial = g.partial.clone();
+        put_render(
+            &mut partial,
+            scene,
+            &format!("spp={}", settings.spp),
+            settings.seed,
+        );
+        return write_part(&outputs.exr, settings.shard, &partial, &g.primal);
+    }
     let image = g.reconstruct(&scene.integrator.gradient);
     let rendered = g.rendered.iter().filter(|&&r| r).count();
     // Cut short, every rendered pixel holds what time allowed.
@@ -420,6 +490,13 @@ fn main() -> ExitCode {
         Command::Compare { reference, images } => {
             compare(&reference, &images).map(|()| Outcome::Finished)
         }
+        Command::Merge {
+            output,
+            parts,
+            partial,
+            force,
+            exposure,
+        } => merge(&output, &parts, partial, force, exposure).map(|()| Outcome::Finished),
     };
     match result {
         Ok(Outcome::Finished) => ExitCode::SUCCESS,

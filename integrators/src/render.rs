@@ -20,6 +20,7 @@ use crate::path::PathTracer;
 
 use crate::rounds::render_rounds;
 pub use crate::rounds::{PixelSamples, Tile, TileRun, render_tiles, sample_stream};
+use crate::shard::{Partial, Shard};
 
 thread_local! {
     /// Each thread's splat list, reused from pixel to pixel so that light
@@ -45,6 +46,9 @@ pub struct Settings {
     /// its pairs of pixels need equal counts); Metropolis methods stop
     /// their chains.
     pub time_limit: Option<Duration>,
+    /// The part of the render to take ([`Shard::WHOLE`] for all of it): a
+    /// share of each pixel's samples, or of the Metropolis chains.
+    pub shard: Shard,
     /// Worker threads (`None`: all cores).
     pub threads: Option<usize>,
     /// Show a progress bar.
@@ -66,6 +70,7 @@ impl Settings {
             spp,
             seed,
             first_sample: 0,
+            shard: Shard::WHOLE,
             time_limit: None,
             threads: None,
             progress: false,
@@ -104,6 +109,9 @@ pub struct Rendered {
     pub ray_seconds: f64,
     /// False if the time limit or a stop request cut the render short.
     pub complete: bool,
+    /// What a merge with the render's other parts needs
+    /// ([`crate::parts`]).
+    pub partial: Partial,
 }
 
 /// The estimator the scene's integrator names: `path`, `direct`, `light`,
@@ -198,7 +206,10 @@ pub fn render_with(
     let mut film = film.into_inner().expect("no thread panicked");
     let samples = film.samples();
     film.add_splats(&splats, samples);
+    let mut partial = Partial::new(w, h);
+    crate::parts::put_camera(&film, "", &mut partial);
     Ok(Rendered {
+        partial,
         film,
         seconds: rounds.seconds,
         samples,

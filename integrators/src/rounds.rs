@@ -114,6 +114,14 @@ pub(crate) fn render_rounds(
     pixels: u64,
     mut round: impl FnMut(u64, &Settings, &ProgressBar) -> Result<TileRun, String> + Send,
 ) -> Result<Rounds, String> {
+    // A part of the render takes its share of each pixel's samples.
+    let share = settings.shard.share(u64::from(settings.spp));
+    let settings = &Settings {
+        first_sample: settings.first_sample + share.start as u32,
+        spp: (share.end - share.start) as u32,
+        shard: crate::shard::Shard::WHOLE,
+        ..settings.clone()
+    };
     let start = Instant::now();
     let bar = progress_bar(settings, pixels);
     let pool = settings.pool()?;

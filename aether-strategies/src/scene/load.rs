@@ -608,9 +608,7 @@ fn is_black(e: &Emitter) -> bool {
         Emitter::Area { radiance, .. } | Emitter::Constant { radiance } => zero(radiance),
         Emitter::Point { intensity, .. } | Emitter::Spot { intensity, .. } => zero(intensity),
         Emitter::Directional { irradiance, .. } => zero(irradiance),
-        Emitter::EnvMap { scale, image, .. } => {
-            *scale == 0.0 || image.texels.iter().all(zero)
-        }
+        Emitter::EnvMap { scale, image, .. } => *scale == 0.0 || image.texels.iter().all(zero),
     }
 }
 

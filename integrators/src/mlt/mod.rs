@@ -33,6 +33,7 @@ use rayon::prelude::*;
 use crate::estimator::Splats;
 use crate::film::Film;
 use crate::render::{Rendered, Settings};
+use crate::shard::Partial;
 
 /// Mutations between looks at the clock and the stop flag.
 const CHECK_EVERY: u64 = 256;
@@ -216,7 +217,7 @@ pub(crate) fn run_chains<S: Sampler>(
     };
     let seed = settings.seed;
     let classes = sampler.classes().max(1);
-    let (image, mutations, rays, nanos) = pool.install(|| -> Result<_, String> {
+    let (image, mutations, rays, nanos, b_total) = pool.install(|| -> Result<_, String> {
         // Bootstrap: sample i belongs to class i mod classes, on stream i;
         // each class gets the number asked for (as pbrt-v3's MMLT does).
         let bootstrap = mlt.bootstrap.max(1) * classes;
@@ -250,12 +251,22 @@ pub(crate) fn run_chains<S: Sampler>(
         if out_of_time() {
             // Stopped during the bootstrap: no chain has started.
             let black = vec![[0.0f64; 3]; w as usize * h as usize];
-            return Ok((black, 0, boot_rays.into_inner(), boot_nanos.into_inner()));
+            return Ok((
+                black,
+                0,
+                boot_rays.into_inner(),
+                boot_nanos.into_inner(),
+                0.0,
+            ));
         }
         if !(b_total > 0.0 && b_total.is_finite()) {
             return Err("no bootstrap sample carries light: the image is black".to_string());
         }
-        let results: Vec<(Vec<[f64; 3]>, u64, [u64; 2])> = (0..chains as u64)
+        // A part of the render runs its share of the chains, each as the
+        // whole render would (its own stream, the shared normalisation).
+        let results: Vec<(Vec<[f64; 3]>, u64, [u64; 2])> = settings
+            .shard
+            .share(chains as u64)
             .into_par_iter()
             .map(|k| {
                 let before = [rays_cast(), ray_nanos()];
@@ -327,20 +338,25 @@ pub(crate) fn run_chains<S: Sampler>(
                 }
             }
         }
-        let scale = b_total / mutations.max(1) as f64;
-        for a in &mut image {
-            *a = a.map(|v| v * scale);
-        }
-        Ok((image, mutations, rays, nanos))
+        Ok((image, mutations, rays, nanos, b_total))
     })?;
     bar.finish_and_clear();
+    let mut partial = Partial::new(w, h);
+    partial.put_rgb("chain", &image);
+    partial.totals.insert("mutations".into(), mutations as f64);
+    partial
+        .same
+        .insert("normalisation".into(), b_total.to_string());
+    let image = crate::parts::chain_image(&image, b_total, mutations as f64);
+    let ours = settings.shard.share(chains as u64);
     Ok(Rendered {
         film: crop_film(scene, &image),
         seconds: start.elapsed().as_secs_f64(),
         samples: mutations,
         rays,
         ray_seconds: nanos as f64 * 1e-9,
-        complete: mutations >= total,
+        complete: mutations >= per_chain * (ours.end - ours.start),
+        partial,
     })
 }
 

@@ -327,14 +327,11 @@ fn render_with_direct(
         ..settings.clone()
     };
     let chains = run_chains(sampler, scene, mlt, &rest, stop)?;
-    let image: Vec<[f64; 3]> = chains
-        .film
-        .image()
-        .iter()
-        .zip(lit.film.image())
-        .map(|(a, b)| [0, 1, 2].map(|k| f64::from(a[k]) + f64::from(b[k])))
-        .collect();
+    let image = crate::parts::with_direct(&chains.film.image(), &lit.film.image());
+    let mut partial = chains.partial;
+    crate::parts::put_prefixed(&lit.partial, "direct.", &mut partial);
     Ok(Rendered {
+        partial,
         film: crop_film(scene, &image),
         seconds: chains.seconds + lit.seconds,
         samples: chains.samples,
