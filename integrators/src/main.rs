@@ -19,7 +19,7 @@ use integrators::output::{
 use integrators::parts::put_render;
 use integrators::render::{Settings, render, render_with};
 use integrators::shard::Shard;
-use integrators::shard_file::{merge_files, write_part};
+use integrators::shard_file::{merge_files, read_part, write_part};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -36,7 +36,8 @@ struct Cli {
 enum Command {
     /// Render a scene (the built-in Cornell box without one) to EXR and PNG.
     Render(Box<RenderArgs>),
-    /// Compare EXR images with a reference: means, their relative difference and RMSE.
+    /// Compare EXR images with a reference: means, their relative difference
+    /// and RMSE (and, for parts of renders, whether they are the same part).
     Compare {
         /// The reference image.
         reference: PathBuf,
@@ -108,6 +109,17 @@ fn compare(reference: &std::path::Path, images: &[PathBuf]) -> Result<(), String
             100.0 * c.relative_difference(),
             c.rmse
         );
+        // Two parts of renders: are they the same part, sums and all?
+        if let (Ok(a), Ok(b)) = (read_part(reference), read_part(path)) {
+            match a == b {
+                true => println!(
+                    "{}: the same part {}, every sum and count equal",
+                    path.display(),
+                    b.0
+                ),
+                false => println!("{}: a different part from the reference", path.display()),
+            }
+        }
     }
     Ok(())
 }

@@ -227,25 +227,56 @@ pub struct Merged {
 /// # Errors
 /// As [`MergeError`].
 pub fn merge(parts: &[(PathBuf, Shard, Partial)], partial: bool) -> Result<Merged, MergeError> {
-    let Some((first_file, first_shard, first)) = parts.first() else {
-        return Err(MergeError::Nothing);
-    };
-    let mut seen: BTreeMap<u32, &Path> = BTreeMap::new();
-    let mut sum = first.clone();
+    let mut merger: Option<Merger> = None;
     for (file, shard, p) in parts {
+        match &mut merger {
+            None => merger = Some(Merger::new(file.clone(), *shard, p.clone())),
+            Some(m) => m.add(file, *shard, p)?,
+        }
+    }
+    merger.ok_or(MergeError::Nothing)?.finish(partial)
+}
+
+/// A merge under way: the parts are added one at a time, so that merging
+/// many parts of a large film holds two of them in memory, not all.
+#[derive(Debug)]
+pub struct Merger {
+    first_file: PathBuf,
+    first_shard: Shard,
+    sum: Partial,
+    seen: BTreeMap<u32, PathBuf>,
+}
+
+impl Merger {
+    /// A merge that starts from the part `shard` in `file`.
+    #[must_use]
+    pub fn new(file: PathBuf, shard: Shard, partial: Partial) -> Merger {
+        let seen = BTreeMap::from([(shard.index, file.clone())]);
+        Merger {
+            first_file: file,
+            first_shard: shard,
+            sum: partial,
+            seen,
+        }
+    }
+
+    /// Adds the part `shard` in `file`.
+    ///
+    /// # Errors
+    /// If it belongs to another render than the first part, or was added
+    /// already.
+    pub fn add(&mut self, file: &Path, shard: Shard, p: &Partial) -> Result<(), MergeError> {
+        let first = &self.sum;
         let differs = |field: &str, expected: String, found: String| MergeError::Differs {
-            file: file.clone(),
-            first: first_file.clone(),
+            file: file.to_path_buf(),
+            first: self.first_file.clone(),
             field: field.to_string(),
             expected,
             found,
         };
-        if shard.count != first_shard.count {
-            return Err(differs(
-                "number of parts",
-                first_shard.count.to_string(),
-                shard.count.to_string(),
-            ));
+        if shard.count != self.first_shard.count {
+            let (a, b) = (self.first_shard.count, shard.count);
+            return Err(differs("number of parts", a.to_string(), b.to_string()));
         }
         if (p.width, p.height) != (first.width, first.height) {
             let size = |p: &Partial| format!("{}×{}", p.width, p.height);
@@ -262,23 +293,29 @@ pub fn merge(parts: &[(PathBuf, Shard, Partial)], partial: bool) -> Result<Merge
         if names(p) != names(first) {
             return Err(differs("channels", names(first), names(p)));
         }
-        if let Some(other) = seen.insert(shard.index, file) {
-            return Err(MergeError::Twice(other.to_path_buf(), file.clone(), *shard));
+        if let Some(other) = self.seen.get(&shard.index) {
+            return Err(MergeError::Twice(other.clone(), file.to_path_buf(), shard));
         }
-        if !std::ptr::eq(p, first) {
-            sum.add(p);
+        self.seen.insert(shard.index, file.to_path_buf());
+        self.sum.add(p);
+        Ok(())
+    }
+
+    /// The merge of the parts added.
+    ///
+    /// # Errors
+    /// If parts are missing and `partial` is false.
+    pub fn finish(self, partial: bool) -> Result<Merged, MergeError> {
+        let n = self.first_shard.count;
+        let missing: Vec<u32> = (0..n).filter(|k| !self.seen.contains_key(k)).collect();
+        if !missing.is_empty() && !partial {
+            return Err(MergeError::Missing(missing, n));
         }
+        Ok(Merged {
+            fraction: self.seen.len() as f64 / f64::from(n),
+            partial: self.sum,
+        })
     }
-    let missing: Vec<u32> = (0..first_shard.count)
-        .filter(|k| !seen.contains_key(k))
-        .collect();
-    if !missing.is_empty() && !partial {
-        return Err(MergeError::Missing(missing, first_shard.count));
-    }
-    Ok(Merged {
-        partial: sum,
-        fraction: seen.len() as f64 / f64::from(first_shard.count),
-    })
 }
 
 #[cfg(test)]

@@ -227,12 +227,16 @@ pub fn merge_files(
         }
     }
     files.check_writable()?;
-    let mut parts = Vec::new();
+    let mut merger: Option<crate::shard::Merger> = None;
     for path in inputs {
         let (shard, p) = read_part(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        parts.push((path.clone(), shard, p));
+        match &mut merger {
+            None => merger = Some(crate::shard::Merger::new(path.clone(), shard, p)),
+            Some(m) => m.add(path, shard, &p).map_err(|e| e.to_string())?,
+        }
     }
-    let merged = crate::shard::merge(&parts, partial).map_err(|e| e.to_string())?;
+    let merger = merger.ok_or_else(|| crate::shard::MergeError::Nothing.to_string())?;
+    let merged = merger.finish(partial).map_err(|e| e.to_string())?;
     let finished = crate::parts::finish(&merged.partial)?;
     let p = &merged.partial;
     let (w, h) = (p.width, p.height);

@@ -155,3 +155,60 @@ fn sigterm_and_ctrl_c_stop_at_once_and_write_the_whole_image() {
     let (_, out) = stop_with(&["INT", "INT"], &exr);
     assert_eq!(out.status.code(), Some(130));
 }
+
+#[test]
+fn parts_render_and_merge_and_bad_parts_are_refused() {
+    let dir = folder("parts");
+    let d = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    refused(
+        &["render", "--shard", "4/4", "-o", &d("x.exr")],
+        "'4/4' is not a part K/N",
+    );
+    refused(
+        &["render", "--shard", "0/0", "-o", &d("x.exr")],
+        "'0/0' is not a part K/N",
+    );
+    for k in 0..3 {
+        let part = d(&format!("p{k}.exr"));
+        let shard = format!("{k}/3");
+        let out = run(&[
+            "render", "--size", "8", "--spp", "3", "-i", "bdpt", "--shard", &shard, "-o", &part,
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let (p0, p1, p2) = (d("p0.exr"), d("p1.exr"), d("p2.exr"));
+    let out = run(&["merge", &d("m.exr"), &p2, &p0, &p1]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let counts = read_counts(&dir.join("m.exr")).unwrap().unwrap();
+    assert!(counts.iter().all(|&n| n == 3), "{counts:?}");
+    refused(
+        &["merge", &d("m.exr"), &p0, &p1, &p2],
+        "m.exr: exists (--force overwrites it)",
+    );
+    refused(
+        &["merge", &d("n.exr"), &p0, &p1],
+        "parts 2 of 3 are missing",
+    );
+    let out = run(&["merge", "--partial", &d("n.exr"), &p0, &p1]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("66.7 % of the render's parts"));
+    // An image that is not a part, and a truncated part.
+    std::fs::copy(dir.join("m.exr"), dir.join("image.exr")).unwrap();
+    refused(
+        &["merge", &d("o.exr"), &d("image.exr")],
+        "image.exr: no aether.shard in its header",
+    );
+    let bytes = std::fs::read(&p1).unwrap();
+    std::fs::write(dir.join("cut.exr"), &bytes[..bytes.len() / 3]).unwrap();
+    refused(
+        &["merge", &d("o.exr"), &p0, &d("cut.exr"), &p2],
+        "cut.exr: not a readable EXR image",
+    );
+}
