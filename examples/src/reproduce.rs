@@ -243,8 +243,11 @@ pub fn run(o: &Options) -> Result<Report, String> {
     Ok(Report { rows, html })
 }
 
-/// The scene files under `dir`, sorted.
-fn scene_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+/// The scene files under `dir` and its folders, sorted.
+///
+/// # Errors
+/// If a folder cannot be listed.
+pub fn scene_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let mut out = Vec::new();
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {

@@ -308,13 +308,7 @@ impl Comparison {
 /// # Errors
 /// If the file cannot be read as an EXR image.
 pub fn read_counts(path: &Path) -> std::result::Result<Option<Vec<u32>>, String> {
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
+    let image = read_channels(path)
         .map_err(|e| format!("{}: cannot read the EXR image: {e}", path.display()))?;
     let channels = &image.layer_data.channel_data.list;
     Ok(channels
@@ -324,4 +318,17 @@ pub fn read_counts(path: &Path) -> std::result::Result<Option<Vec<u32>>, String>
             FlatSamples::U32(v) => Some(v.clone()),
             _ => None,
         }))
+}
+
+/// Every channel of the first layer of an EXR file, with its attributes.
+pub(crate) fn read_channels(
+    path: &Path,
+) -> std::result::Result<Image<Layer<AnyChannels<FlatSamples>>>, exr::error::Error> {
+    read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
 }

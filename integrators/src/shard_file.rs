@@ -88,14 +88,8 @@ pub fn write_part(
 /// If the file is not an EXR image, or not a part of a render (no part in
 /// its header, a plane without its other half, a truncated file).
 pub fn read_part(path: &Path) -> std::result::Result<(Shard, Partial), String> {
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| format!("not a readable EXR image: {e}"))?;
+    let image =
+        crate::output::read_channels(path).map_err(|e| format!("not a readable EXR image: {e}"))?;
     let layer = &image.layer_data;
     let header: BTreeMap<String, &AttributeValue> = layer
         .attributes

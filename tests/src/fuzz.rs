@@ -149,24 +149,14 @@ impl Tally {
     }
 }
 
-/// Every scene file under the folders given, sorted.
+/// Every scene file under the folders given (absent ones skipped), sorted.
 #[must_use]
 pub fn scene_files(folders: &[PathBuf]) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack: Vec<PathBuf> = folders.to_vec();
-    while let Some(dir) = stack.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for entry in entries.flatten() {
-            let path = entry.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.extension().is_some_and(|e| e == "xml") {
-                out.push(path);
-            }
-        }
-    }
+    let mut out: Vec<PathBuf> = folders
+        .iter()
+        .filter_map(|f| examples::reproduce::scene_files(f).ok())
+        .flatten()
+        .collect();
     out.sort();
     out
 }
