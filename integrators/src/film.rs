@@ -5,6 +5,13 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+/// `v` as f32, saturating at the largest finite f32: a mean too bright for
+/// f32 (reflectance far above one) stays finite in the image.
+#[must_use]
+pub fn saturate(v: f64) -> f32 {
+    v.clamp(-f64::from(f32::MAX), f64::from(f32::MAX)) as f32
+}
+
 /// The image of camera-sample `sums` over their per-pixel `counts` (black
 /// where nothing was rendered), plus light paths' splatted sums over their
 /// number: a render's image, and a merge's of its parts.
@@ -20,12 +27,12 @@ pub fn camera_image(
         .map(|(i, (s, &n))| {
             let c = match n {
                 0 => [0.0; 3],
-                n => s.map(|c| (c / f64::from(n)) as f32),
+                n => s.map(|c| saturate(c / f64::from(n))),
             };
             match splats {
                 Some((splat, paths)) if paths > 0 => {
                     let scale = 1.0 / paths as f64;
-                    [0, 1, 2].map(|k| c[k] + (splat[i][k] * scale) as f32)
+                    [0, 1, 2].map(|k| saturate(f64::from(c[k]) + splat[i][k] * scale))
                 }
                 _ => c,
             }

@@ -586,7 +586,7 @@ pub fn pair_images(w: u32, h: u32, sums: &[Option<PairSums>], done: u32) -> [Vec
         sums[(y * i64::from(w) + x) as usize].as_ref()
     };
     let mut images = [(); 3].map(|()| vec![[0.0f32; 3]; sums.len()]);
-    let rgb = |v: DVec3| (v / spp).as_vec3().to_array();
+    let rgb = |v: DVec3| (v / spp).to_array().map(crate::film::saturate);
     for y in 0..i64::from(h) {
         for x in 0..i64::from(w) {
             let Some(own) = at(x, y) else { continue };

@@ -14,7 +14,7 @@
 use aether_strategies::scene::Scene;
 use glam::DVec3;
 
-use crate::film::{Film, camera_image};
+use crate::film::{Film, camera_image, saturate};
 use crate::gradient::{PairSums, pair_images};
 use crate::poisson::{Norm, reconstruct};
 use crate::shard::Partial;
@@ -108,11 +108,11 @@ pub fn finish(p: &Partial) -> Result<Finished, String> {
                 .and_then(|b| b.parse().ok())
                 .ok_or_else(|| missing("the normalisation"))?;
             let chains = chain_image(&sums, b, p.total("mutations"));
-            let chains: Vec<[f32; 3]> = chains.iter().map(|c| c.map(|v| v as f32)).collect();
+            let chains: Vec<[f32; 3]> = chains.iter().map(|c| c.map(saturate)).collect();
             match camera_from(p, "direct.") {
                 Some(direct) => with_direct(&chains, &direct)
                     .iter()
-                    .map(|c| c.map(|v| v as f32))
+                    .map(|c| c.map(saturate))
                     .collect(),
                 None => chains,
             }

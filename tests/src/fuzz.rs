@@ -358,9 +358,14 @@ pub fn run(scenes: &[PathBuf], range: std::ops::Range<u64>, scratch: &Path) -> T
         .collect();
     let mut tally = Tally::default();
     let n = scenes.len() as u64;
+    // To find a mutant that never returns: each is named before it runs.
+    let trace = std::env::var_os("AETHER_FUZZ_TRACE").is_some();
     for i in range {
         let k = (i % n) as usize;
         let mutant = mutate(&texts[k], &scenes[k], i / n);
+        if trace {
+            eprintln!("mutant {} of {}", i / n, scenes[k].display());
+        }
         let (outcome, message) = run_one(&mutant, &scenes[k], scratch, Duration::from_secs(20));
         tally.add(outcome, || {
             format!(

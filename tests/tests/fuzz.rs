@@ -165,3 +165,21 @@ fn fuzz_long() {
     );
     assert_clean(&tally);
 }
+
+/// Writes one mutant to standard output, to reproduce a failure the
+/// fuzzer reported: `AETHER_FUZZ_SHOW=SCENE.xml:INDEX`.
+#[test]
+#[ignore = "a tool: prints the mutant AETHER_FUZZ_SHOW names"]
+fn fuzz_show() {
+    let Ok(what) = std::env::var("AETHER_FUZZ_SHOW") else {
+        return;
+    };
+    let (scene, index) = what.rsplit_once(':').expect("SCENE.xml:INDEX");
+    let text = std::fs::read_to_string(scene).expect("the scene");
+    let index = index.parse().expect("a mutant index");
+    let mutant = tests::fuzz::mutate(&text, Path::new(scene), index);
+    use std::io::Write;
+    std::io::stdout()
+        .write_all(&mutant)
+        .expect("standard output");
+}

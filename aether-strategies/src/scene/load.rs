@@ -614,7 +614,8 @@ fn is_black(e: &Emitter) -> bool {
 
 fn positive(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
     let v = o.float(name, default)?;
-    if v.is_finite() && v > 0.0 {
+    // Positive in f32 too: 1e308 is a finite f64 but an infinite f32.
+    if v.is_finite() && v > 0.0 && (v as f32).is_finite() && v as f32 > 0.0 {
         Ok(v as f32)
     } else {
         Err(o.error(format!("'{name}' must be positive, not {v}")))
@@ -637,7 +638,14 @@ fn ior(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
         };
         return Ok(n);
     }
-    positive(o, name, default)
+    let n = positive(o, name, default)?;
+    // No material is near 100; beyond it Fresnel's squares overflow.
+    if n > 100.0 {
+        return Err(o.error(format!(
+            "'{name}' {n} is not an index of refraction (at most 100)"
+        )));
+    }
+    Ok(n)
 }
 
 fn roughness(o: &Object) -> Result<Option<Roughness>, SceneError> {

@@ -289,9 +289,12 @@ pub(crate) fn run_chains<S: Sampler>(
                 let mut image = vec![[0.0f64; 3]; w as usize * h as usize];
                 let mut splat = |state: &S::State, weight: f64| {
                     let (contributions, f) = sampler.contributions(state);
-                    if weight > 0.0 && f > 0.0 {
+                    // A path whose F or contribution overflowed (reflectance
+                    // far above one) is left out, as the estimators drop
+                    // non-finite samples: no NaN reaches the image.
+                    if weight > 0.0 && f > 0.0 && f.is_finite() {
                         let scale = weight / f;
-                        for ([x, y], c) in contributions {
+                        for ([x, y], c) in contributions.iter().filter(|(_, c)| c.is_finite()) {
                             let p = &mut image[(y * w + x) as usize];
                             for (a, v) in p.iter_mut().zip(c.to_array()) {
                                 *a += scale * f64::from(v);
