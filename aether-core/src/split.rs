@@ -195,6 +195,17 @@ pub fn weights_of_split_variants<'s, V: Vertex>(
     if variants.is_empty() || !path.is_complete() || own >= splits.len() || at >= path.len() {
         return variants.iter().map(|_| (0.0, zero)).collect();
     }
+    // The camera's own strategy as the one variant (a path sampled for
+    // its own pixel) is the plain weight.
+    if let ([v], Some(c)) = (variants, camera.get(at)) {
+        if v.same(c) {
+            return [weight_of_split(
+                path, camera, light, splits, own, heuristic, cache,
+            )]
+            .into_iter()
+            .collect();
+        }
+    }
     let mut factor = |s: StrategyRef<'s, V>| {
         let span = Span::new(at, 1, Some(s), false, 0);
         path.factor(&span, cache.as_mut().map(|c| &mut c.0))

@@ -398,6 +398,18 @@ impl<V> StrategyRef<'_, V> {
         }
     }
 
+    /// True if both are the same strategy object (a copy of its vtable in
+    /// another codegen unit only misses: callers fall back to comparing
+    /// densities).
+    pub(crate) fn same(&self, other: &Self) -> bool {
+        #[allow(ambiguous_wide_pointer_comparisons)]
+        match (self, other) {
+            (StrategyRef::One(a), StrategyRef::One(b)) => std::ptr::eq(*a, *b),
+            (StrategyRef::Two(a), StrategyRef::Two(b)) => std::ptr::eq(*a, *b),
+            _ => false,
+        }
+    }
+
     /// The address of the strategy object, which with the name identifies it.
     pub(crate) fn address(&self) -> usize {
         match self {

@@ -188,9 +188,8 @@ fn walk<'a>(
     rng: &mut Rng,
 ) -> Path<'a> {
     let mut path = RandomSequence::new();
-    path.append(first[0])
-        .append(first[1])
-        .repeat(next, max, rng);
+    path.append(first[0]).append(first[1]);
+    path.repeat(next, max, rng);
     path
 }
 
@@ -343,9 +342,27 @@ struct Run<'r, 'a, 's> {
     seeds: Option<&'r mut Vec<SeedPath>>,
     /// The one light-prefix length to join, if not all.
     only: Option<usize>,
+    /// The camera's importance for the pixel's own first ray (its two ends).
+    importance: Option<(Vec3, Vec3, f64)>,
 }
 
 impl<'r, 'a, 's> Run<'r, 'a, 's> {
+    /// The camera's importance for pixel `pixel` and the first ray of
+    /// `self.path`; `own`, for the sample's own pixel, whose connections
+    /// all share their first ray, is found once per sample.
+    fn importance(&mut self, camera: &Camera, pixel: [u32; 2], own: bool) -> f64 {
+        let v = self.path.vertices();
+        let (lens, ray) = (&v[0], (v[0].position, v[1].position));
+        match self.importance {
+            Some((a, b, w)) if own && (a, b) == ray => w,
+            _ => {
+                let w = camera.importance(pixel, lens, lens.direction_to(&v[1]).unwrap_or(Vec3::Z));
+                self.importance = own.then_some((ray.0, ray.1, w)).or(self.importance);
+                w
+            }
+        }
+    }
+
     fn new(
         kit: &'a Kit<'a, 's>,
         pixel: [u32; 2],
@@ -362,6 +379,7 @@ impl<'r, 'a, 's> Run<'r, 'a, 's> {
             path: RandomSequence::new(),
             seeds,
             only: None,
+            importance: None,
         }
     }
 }
@@ -381,8 +399,10 @@ impl<'s> Bdpt<'s> {
     ) -> DVec3 {
         let (mut radiance, open, only) = (DVec3::ZERO, side.connectible(n - 1), run.only);
         let all = 0..=lamp.len().max(1).min(self.max_vertices - n);
+        // The camera side is copied once; each light prefix replaces the last one's.
+        run.path.clear().extend_from(head, 0..n, false);
         for t in all.filter(|t| only.is_none_or(|o| o == *t)) {
-            run.path.clear().extend_from(head, 0..n, false);
+            run.path.truncate(n);
             let through = match t {
                 0 => side.emitted(n),
                 1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
@@ -415,10 +435,12 @@ impl<'s> Bdpt<'s> {
             true => self.camera.pixels_toward(&lens, d).map(at).collect(),
             false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
-        let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
+        // The sample's own pixel is weighed by its own strategy, no variant.
+        let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
+        let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
         let (mut seen, weights) = (DVec3::ZERO, self.weights(run.kit, &looks, own, &run.path));
         for (&(j, _), (w, p)) in pixels.iter().zip(weights) {
-            let unweighted = through * self.camera.importance(j, &lens, d) / p;
+            let unweighted = through * run.importance(&self.camera, j, !splat) / p;
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
                 e if splat => run.splats.push((j, e.as_vec3())),

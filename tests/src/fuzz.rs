@@ -285,8 +285,8 @@ fn replace_attribute(text: &str, rng: &mut Pcg32) -> String {
 }
 
 /// Loads `bytes` as the scene file `path` (invalid UTF-8 through a file in
-/// `scratch`) and renders what loads at 8 pixels wide, one sample per
-/// pixel, on one thread.
+/// `scratch`) and renders what loads at 8 pixels wide (at most 8 tall),
+/// one sample per pixel, on one thread.
 pub fn run_one(bytes: &[u8], path: &Path, scratch: &Path, hang: Duration) -> (Outcome, String) {
     let start = Instant::now();
     let result = catch_unwind(AssertUnwindSafe(|| load_and_render(bytes, path, scratch)));
@@ -329,12 +329,20 @@ fn load_and_render(bytes: &[u8], path: &Path, scratch: &Path) -> (Outcome, Strin
     if scene.film.scale_to_width(8).is_err() {
         return (Outcome::Error, "film".into());
     }
+    // A mutated aspect ratio would make an 8-pixel-wide film millions of
+    // pixels tall: minutes of rendering that the hang check would flag.
+    let f = &mut scene.film;
+    f.height = f.height.min(8);
+    f.crop = [0, 0, f.width, f.height];
     scene.film.spp = 1;
     if scene.integrator.max_depth < 0 || scene.integrator.max_depth > 8 {
         scene.integrator.max_depth = 8;
     }
+    // The work the scene asks for is bounded like the film's, so that a
+    // mutated count (2³¹ direct samples per pixel, say) is not a hang.
     let m = &mut scene.integrator.metropolis;
     (m.luminance_samples, m.chains) = (m.luminance_samples.min(64), m.chains.min(2));
+    m.direct_samples = m.direct_samples.min(1);
     let settings = Settings {
         threads: Some(1),
         ..Settings::new(1, 0)

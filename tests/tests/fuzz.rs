@@ -115,49 +115,65 @@ fn fuzz_long() {
     let exe = std::env::current_exe().expect("the test binary");
     let mut tally = Tally::default();
     let mut aborted = Vec::new();
-    let starts: Vec<u64> = (0..total).step_by(batch as usize).collect();
+    let workers = std::thread::available_parallelism().map_or(2, usize::from);
+    let mut queue = (0..total)
+        .step_by(batch as usize)
+        .map(|s| s..(s + batch).min(total));
+    let mut running = Vec::new();
     let begin = Instant::now();
-    for pair in starts.chunks(2) {
-        let children: Vec<_> = pair
-            .iter()
-            .map(|&s| {
-                let end = (s + batch).min(total);
-                let child = Command::new(&exe)
-                    .args(["--exact", "fuzz_batch", "--ignored", "--nocapture"])
-                    .env("AETHER_FUZZ_BATCH", format!("{s}..{end}"))
-                    .stdout(Stdio::piped())
-                    .stderr(Stdio::null())
-                    .spawn()
-                    .expect("the test binary starts");
-                (s..end, child)
-            })
-            .collect();
-        for (range, mut child) in children {
-            let deadline = Instant::now() + Duration::from_secs(1800);
-            let status = loop {
-                match child.try_wait().expect("the child can be waited for") {
-                    Some(status) => break Some(status),
-                    None if Instant::now() > deadline => {
-                        let _ = child.kill();
-                        break None;
-                    }
-                    None => std::thread::sleep(Duration::from_millis(200)),
+    // A batch is one child process; as soon as one ends the next starts,
+    // so that one slow batch does not idle the other cores.
+    loop {
+        while running.len() < workers {
+            let Some(range) = queue.next() else { break };
+            let child = Command::new(&exe)
+                .args(["--exact", "fuzz_batch", "--ignored", "--nocapture"])
+                .env(
+                    "AETHER_FUZZ_BATCH",
+                    format!("{}..{}", range.start, range.end),
+                )
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("the test binary starts");
+            running.push((range, child, Instant::now() + Duration::from_secs(600)));
+        }
+        if running.is_empty() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        let mut k = 0;
+        while k < running.len() {
+            let (_, child, deadline) = &mut running[k];
+            let status = match child.try_wait().expect("the child can be waited for") {
+                Some(status) => Some(status),
+                None if Instant::now() > *deadline => {
+                    let _ = child.kill();
+                    None
+                }
+                None => {
+                    k += 1;
+                    continue;
                 }
             };
+            let (range, child, _) = running.swap_remove(k);
             let output = child.wait_with_output().expect("the child's output");
             let text = String::from_utf8_lossy(&output.stdout);
-            let line = text.lines().find_map(Tally::parse);
-            match (status, line) {
+            match (status, text.lines().find_map(Tally::parse)) {
                 (Some(s), Some(t)) if s.success() => {
                     tally.merge(&t);
                     for f in text.lines().filter(|l| l.starts_with("failure: ")) {
+                        eprintln!("{f}");
                         tally.failures.push(f.to_string());
                     }
                 }
-                (status, _) => aborted.push(format!("mutants {range:?}: {status:?}")),
+                (status, _) => {
+                    eprintln!("mutants {range:?} aborted or hung: {status:?}");
+                    aborted.push(format!("mutants {range:?}: {status:?}"));
+                }
             }
+            eprintln!("{} ({:.0} s)", tally.line(), begin.elapsed().as_secs_f64());
         }
-        eprintln!("{} ({:.0} s)", tally.line(), begin.elapsed().as_secs_f64());
     }
     assert!(
         aborted.is_empty(),

@@ -132,7 +132,7 @@ fn each_integrator_stays_within_its_budget() {
             ("impl<'s> Bdpt<'s>", "join"),
             ("impl<'s> Bdpt<'s>", "contribute"),
             ("impl<'s> Bdpt<'s>", "reach_lens"),
-            ("impl<'s> Bdpt<'s>", "weights"),
+            ("impl<'s> Bdpt<'s>", "weight"),
         ],
     ) - tridir_lines;
     let rows = [
