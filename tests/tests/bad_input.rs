@@ -194,3 +194,24 @@ fn unreadable_text_is_placed_where_it_is() {
     let e = error(load("<scene version=\"0.5.0\"></scene>", &[]));
     assert!(e.contains("<scene>") && !e.contains("type=\"\""), "{e}");
 }
+
+#[test]
+fn indices_of_refraction_stay_where_their_ratio_fits_in_f32() {
+    // 1e-40 is positive and finite in f32 but subnormal: 1.5 / 1e-40 is
+    // infinite, and Fresnel's reflectance a NaN (the fuzzer's mutant 2184
+    // of cbox-sphere-gpt.xml panicked choosing a lobe).
+    for (name, value) in [("extIOR", "1e-40"), ("intIOR", "1e-3"), ("intIOR", "1e3")] {
+        let body = format!(
+            r#"{LIGHT}<shape type="sphere"><bsdf type="dielectric"><float name="{name}" value="{value}"/></bsdf></shape>"#
+        );
+        let e = error(load(&scene(&body), &[]));
+        assert!(
+            e.contains("<bsdf type=\"dielectric\">") && e.contains("index of refraction"),
+            "{e}"
+        );
+    }
+    let body = format!(
+        r#"{LIGHT}<shape type="sphere"><bsdf type="dielectric"><float name="intIOR" value="0.5"/></bsdf></shape>"#
+    );
+    load(&scene(&body), &[]).expect("an index below one is a valid interface");
+}

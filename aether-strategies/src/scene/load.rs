@@ -639,10 +639,11 @@ fn ior(o: &Object, name: &str, default: f64) -> Result<f32, SceneError> {
         return Ok(n);
     }
     let n = positive(o, name, default)?;
-    // No material is near 100; beyond it Fresnel's squares overflow.
-    if n > 100.0 {
+    // No material is near 100 or 0.01; beyond, the ratio of two indices
+    // and Fresnel's squares leave f32.
+    if !(0.01..=100.0).contains(&n) {
         return Err(o.error(format!(
-            "'{name}' {n} is not an index of refraction (at most 100)"
+            "'{name}' {n} is not an index of refraction (from 0.01 to 100)"
         )));
     }
     Ok(n)
