@@ -1,7 +1,9 @@
 //! The harness must be able to fail: deliberately wrong primitives.
 
 use aether_core::harness::{Check, Failure, Grid, SphereDirections, check};
-use aether_core::primitives::{CosineHemisphere, DiscreteDistribution, UniformHemisphere};
+use aether_core::primitives::{
+    CosineHemisphere, DiscreteDistribution, SmoothRefraction, UniformHemisphere,
+};
 use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
 use glam::Vec3;
 
@@ -25,6 +27,33 @@ impl Distribution for WrongJacobian {
     }
     fn invert(&self, w: &Vec3) -> Option<Uniforms> {
         CosineHemisphere.invert(w)
+    }
+}
+
+/// Smooth refraction into glass with η² left out of Snell's Jacobian (the
+/// factor a light path through glass once carried by hand), consistently
+/// in both modes.
+struct RefractionWithoutEta;
+
+const GLASS: f32 = 1.5;
+
+impl Distribution for RefractionWithoutEta {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        let s = SmoothRefraction::new(CosineHemisphere, GLASS).sample(u)?;
+        Some(Sample::new(s.value, self.density(&s.value)))
+    }
+    fn density(&self, w: &Vec3) -> Density {
+        let eta = f64::from(GLASS);
+        SmoothRefraction::new(CosineHemisphere, GLASS)
+            .density(w)
+            .scale(1.0 / (eta * eta))
+    }
+    fn invert(&self, w: &Vec3) -> Option<Uniforms> {
+        SmoothRefraction::new(CosineHemisphere, GLASS).invert(w)
     }
 }
 
@@ -113,6 +142,14 @@ fn run(d: &impl Distribution<Value = Vec3>) -> Failure {
 #[test]
 fn wrong_jacobian_fails_the_jacobian_check() {
     assert!(matches!(run(&WrongJacobian), Failure::Jacobian { .. }));
+}
+
+#[test]
+fn refraction_without_eta_squared_fails_the_jacobian_check() {
+    assert!(matches!(
+        run(&RefractionWithoutEta),
+        Failure::Jacobian { .. }
+    ));
 }
 
 #[test]

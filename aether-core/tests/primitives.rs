@@ -210,6 +210,40 @@ fn microfacet_refraction_has_half_vector_jacobian() {
 }
 
 #[test]
+fn smooth_refraction_carries_snells_jacobian() {
+    // Into glass, out of it (total internal reflection voids samples), into water.
+    for eta in [1.5, 1.0 / 1.5, 1.33] {
+        let r = run(
+            &SmoothRefraction::new(CosineHemisphere, eta),
+            &Grid::new(SphereDirections, 16),
+        );
+        // Leaving glass, more than half the hemisphere reflects totally.
+        assert!(r.jacobian_checked > 150, "{r}");
+    }
+    // A Dirac direction refracts into an atom whose mass is the Jacobian
+    // the continuous case was just checked for: the lobe of a light path
+    // through glass, measured as a camera path measures it.
+    for (w, eta) in [
+        (Vec3::new(0.5, 0.2, 0.84), 1.5),
+        (Vec3::new(0.9, 0.1, 0.1), 1.5),
+        (Vec3::new(0.3, -0.4, 0.87), 1.0 / 1.5),
+    ] {
+        let w = w.normalize();
+        let dirac = SmoothRefraction::new(DiracDirection::new(w, 1.0), eta);
+        let atom = dirac.sample(&[]).expect("no total internal reflection");
+        assert_eq!(atom.density.dirac_order(), 1);
+        let smooth = SmoothRefraction::new(CosineHemisphere, eta).density(&atom.value);
+        let jacobian = smooth.value() / CosineHemisphere.density(&w).value();
+        let mass = dirac.density(&atom.value).value();
+        assert!(
+            (mass / jacobian - 1.0).abs() < 1e-4,
+            "{mass} against {jacobian}"
+        );
+        assert!((atom.density.value() / mass - 1.0).abs() < 1e-5);
+    }
+}
+
+#[test]
 fn dirac_direction_is_an_atom() {
     let w = Vec3::new(0.0, 0.6, 0.8);
     let r = run(

@@ -10,7 +10,7 @@
 //! | directions | [`CosineHemisphere`], [`UniformHemisphere`], [`UniformSphere`], [`UniformCone`] | solid angle |
 //! | perturbations | [`ExponentialDisk`] (plane offsets), [`ExponentialCone`] (directions about an axis), log-uniform in size | area, solid angle |
 //! | microfacets | [`GgxVisibleNormals`], [`BeckmannNormals`] | solid angle |
-//! | scattering | [`Reflect`], [`Refract`] (half-vector Jacobians), [`DiracDirection`] | solid angle, Dirac |
+//! | scattering | [`Reflect`], [`Refract`] (half-vector Jacobians), [`SmoothRefraction`] (Snell's Jacobian), [`DiracDirection`] | solid angle, Dirac |
 //! | projections | [`Gnomonic`] (film plane → directions), [`Equirect`] (unit square → directions) | solid angle |
 //! | embeddings | [`Affine2`] (plane → plane), [`Planar`] (plane → a plane in space), [`SpherePoint`] (directions → a sphere) | area |
 //!
@@ -35,7 +35,7 @@ pub use perturbations::{ExponentialCone, ExponentialDisk};
 pub use piecewise::{PiecewiseConstant1D, PiecewiseConstant2D};
 pub use planar::{UniformDisk, UniformTriangle};
 pub use projections::{Affine2, Equirect, Gnomonic, Planar, SpherePoint};
-pub use scattering::{DiracDirection, Reflect, Refract};
+pub use scattering::{DiracDirection, Reflect, Refract, SmoothRefraction};
 pub use uniform::{UniformInterval, UniformSquare};
 
 use std::f64::consts::PI;

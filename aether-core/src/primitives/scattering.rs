@@ -189,3 +189,64 @@ impl Distribution for DiracDirection {
         (!self.density(w).is_zero()).then(Uniforms::new)
     }
 }
+
+/// The directions of `inner` (unit, +z side of the local frame) carried
+/// through a smooth interface with normal +z by Snell's law, for relative
+/// index `eta` = η_other / η_+z: smooth transmission as a change of
+/// variables.
+///
+/// Density: that of the pre-image ω under `inner`, times the Jacobian
+/// |dω / dω_t| = η² |cos θt| / |cos θ| (from η² cos θ dω = η_t² cos θt dω_t
+/// in radiance units). A Dirac `inner` of mass m becomes a Dirac of mass
+/// m η² |cos θt| / |cos θ|: the lobe of a path that sampled ω_t measured in
+/// the solid angle of ω, as a path sampled the other way measures it.
+///
+/// A direction that total internal reflection keeps on the +z side gives
+/// a void sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SmoothRefraction<D> {
+    inner: D,
+    eta: f32,
+}
+
+impl<D: Distribution<Value = Vec3>> SmoothRefraction<D> {
+    /// Refracts the directions of `inner` for relative index `eta`.
+    pub fn new(inner: D, eta: f32) -> Self {
+        SmoothRefraction { inner, eta }
+    }
+
+    /// |dω / dω_t| for a direction `w` on the +z side and its refraction `t`.
+    fn jacobian(&self, w: Vec3, t: Vec3) -> f64 {
+        let eta = f64::from(self.eta);
+        eta * eta * f64::from(t.z).abs() / f64::from(w.z).abs()
+    }
+
+    /// The direction on the +z side that refracts into `t` (on the −z side).
+    fn preimage(&self, t: Vec3) -> Option<Vec3> {
+        if t.z >= 0.0 {
+            return None;
+        }
+        crate::refract(t, -Vec3::Z, 1.0 / self.eta).filter(|w| w.z > 0.0)
+    }
+}
+
+impl<D: Distribution<Value = Vec3>> Distribution for SmoothRefraction<D> {
+    type Value = Vec3;
+    fn dims(&self) -> usize {
+        self.inner.dims()
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
+        let s = self.inner.sample(u)?;
+        let t = crate::refract(s.value, Vec3::Z, self.eta)?;
+        Some(Sample::new(t, s.density.scale(self.jacobian(s.value, t))))
+    }
+    fn density(&self, t: &Vec3) -> Density {
+        match self.preimage(*t) {
+            Some(w) => self.inner.density(&w).scale(self.jacobian(w, *t)),
+            None => Density::zero(Measure::SolidAngle),
+        }
+    }
+    fn invert(&self, t: &Vec3) -> Option<Uniforms> {
+        self.inner.invert(&self.preimage(*t)?)
+    }
+}

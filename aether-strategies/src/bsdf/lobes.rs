@@ -7,7 +7,7 @@
 
 use aether_core::primitives::{
     BeckmannNormals, CosineHemisphere, DiracDirection, DiscreteDistribution, GgxVisibleNormals,
-    Reflect, Refract,
+    Reflect, Refract, SmoothRefraction,
 };
 use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
 use glam::Vec3;
@@ -28,18 +28,21 @@ fn normals(r: Roughness, given: Vec3) -> Normals {
 }
 
 /// One lobe of a BSDF's sampling.
-type Lobe =
-    Either<Either<CosineHemisphere, DiracDirection>, Either<Reflect<Normals>, Refract<Normals>>>;
+type Lobe = Either<Either<CosineHemisphere, Dirac>, Either<Reflect<Normals>, Refract<Normals>>>;
+
+/// A Dirac lobe: sampled in the solid angle it lies in, or refracted
+/// from the one a path sampled the other way would use.
+type Dirac = Either<DiracDirection, SmoothRefraction<DiracDirection>>;
 
 fn diffuse() -> Lobe {
     Either::Left(Either::Left(CosineHemisphere))
 }
 
 fn mirror(given: Vec3) -> Lobe {
-    Either::Left(Either::Right(DiracDirection::new(
+    Either::Left(Either::Right(Either::Left(DiracDirection::new(
         Vec3::new(-given.x, -given.y, given.z),
         1.0,
-    )))
+    ))))
 }
 
 fn glossy(r: Roughness, given: Vec3) -> Lobe {
@@ -48,19 +51,23 @@ fn glossy(r: Roughness, given: Vec3) -> Lobe {
 
 /// The smooth transmission lobe. Path densities express every Dirac lobe in
 /// the direction towards the light end of the path (the one camera paths
-/// sample), so a light path, which samples the other direction, records
-/// its mass times dω_light / dω_camera = η²|cos_t| / |cos_i| (from
-/// η_i² cos_i dω_i = η_t² cos_t dω_t). Then f / p is the same expression
-/// whichever end sampled the refraction, and MIS compares like with like.
+/// sample), so a light path, which samples the other direction, refracts
+/// the direction it came from: the language carries the atom into the
+/// refracted direction with Snell's Jacobian (dω_light / dω_camera, checked
+/// by the harness). Then f / p is the same expression whichever end sampled
+/// the refraction, and MIS compares like with like.
 fn transmit(given: Vec3, eta: f32, mode: Transport) -> Option<Lobe> {
-    let t = aether_core::refract(given, Vec3::Z, eta)?;
-    let mass = match mode {
-        Transport::Radiance => 1.0,
+    let dirac = match mode {
+        Transport::Radiance => Either::Left(DiracDirection::new(
+            aether_core::refract(given, Vec3::Z, eta)?,
+            1.0,
+        )),
         Transport::Importance => {
-            f64::from(eta).powi(2) * f64::from(t.z.abs()) / f64::from(given.z.abs())
+            aether_core::refract(given, Vec3::Z, eta)?;
+            Either::Right(SmoothRefraction::new(DiracDirection::new(given, 1.0), eta))
         }
     };
-    Some(Either::Left(Either::Right(DiracDirection::new(t, mass))))
+    Some(Either::Left(Either::Right(dirac)))
 }
 
 /// The sampling of a material at a shading point, for the direction
