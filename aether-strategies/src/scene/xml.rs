@@ -954,10 +954,17 @@ impl Reader {
             };
             m = step * m;
         }
-        if !m.is_finite() || m.determinant() == 0.0 {
-            return Err(cx.error(node, "the transform is singular or not finite"));
+        // Geometry is transformed in single precision, and normals by the
+        // inverse: both must exist there (a scale of 1e-40 is not zero in
+        // f64, but its inverse is infinite in f32).
+        let single = m.as_mat4();
+        if !single.is_finite() || m.determinant() == 0.0 || !m.inverse().as_mat4().is_finite() {
+            return Err(cx.error(
+                node,
+                "the transform is singular or not finite (in single precision)",
+            ));
         }
-        Ok(m.as_mat4())
+        Ok(single)
     }
 }
 
