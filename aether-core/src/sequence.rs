@@ -483,11 +483,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// the factor is then looked up).
     fn sampled_by(&self, i: usize, strategy: Option<StrategyRef<'_, V>>) -> bool {
         match (self.slots.get(i).and_then(|s| s.strategy), strategy) {
-            (Some(StrategyRef::One(a)), Some(StrategyRef::One(b))) =>
-            {
-                #[allow(ambiguous_wide_pointer_comparisons)]
-                std::ptr::eq(a, b)
-            }
+            (Some(a), Some(b)) => a.same(&b),
             _ => false,
         }
     }

@@ -348,16 +348,19 @@ struct Run<'r, 'a, 's> {
 
 impl<'r, 'a, 's> Run<'r, 'a, 's> {
     /// The camera's importance for pixel `pixel` and the first ray of
-    /// `self.path`; `own`, for the sample's own pixel, whose connections
-    /// all share their first ray, is found once per sample.
-    fn importance(&mut self, camera: &Camera, pixel: [u32; 2], own: bool) -> f64 {
+    /// `self.path`, leaving the lens in direction `d`; `own`, for the
+    /// sample's own pixel, whose connections all share their first ray, is
+    /// found once per sample.
+    fn importance(&mut self, camera: &Camera, pixel: [u32; 2], d: Vec3, own: bool) -> f64 {
         let v = self.path.vertices();
-        let (lens, ray) = (&v[0], (v[0].position, v[1].position));
+        let ray = (v[0].position, v[1].position);
         match self.importance {
             Some((a, b, w)) if own && (a, b) == ray => w,
             _ => {
-                let w = camera.importance(pixel, lens, lens.direction_to(&v[1]).unwrap_or(Vec3::Z));
-                self.importance = own.then_some((ray.0, ray.1, w)).or(self.importance);
+                let w = camera.importance(pixel, &v[0], d);
+                if own {
+                    self.importance = Some((ray.0, ray.1, w));
+                }
                 w
             }
         }
@@ -440,7 +443,7 @@ impl<'s> Bdpt<'s> {
         let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
         let (mut seen, weights) = (DVec3::ZERO, self.weights(run.kit, &looks, own, &run.path));
         for (&(j, _), (w, p)) in pixels.iter().zip(weights) {
-            let unweighted = through * run.importance(&self.camera, j, !splat) / p;
+            let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
                 e if splat => run.splats.push((j, e.as_vec3())),

@@ -168,8 +168,9 @@ fn fuzz_long() {
                     }
                 }
                 (status, _) => {
-                    eprintln!("mutants {range:?} aborted or hung: {status:?}");
-                    aborted.push(format!("mutants {range:?}: {status:?}"));
+                    let batch = format!("mutants {range:?}: {status:?}");
+                    eprintln!("aborted or hung: {batch}");
+                    aborted.push(batch);
                 }
             }
             eprintln!("{} ({:.0} s)", tally.line(), begin.elapsed().as_secs_f64());

@@ -57,13 +57,10 @@ fn glossy(r: Roughness, given: Vec3) -> Lobe {
 /// by the harness). Then f / p is the same expression whichever end sampled
 /// the refraction, and MIS compares like with like.
 fn transmit(given: Vec3, eta: f32, mode: Transport) -> Option<Lobe> {
+    let t = aether_core::refract(given, Vec3::Z, eta)?;
     let dirac = match mode {
-        Transport::Radiance => Either::Left(DiracDirection::new(
-            aether_core::refract(given, Vec3::Z, eta)?,
-            1.0,
-        )),
+        Transport::Radiance => Either::Left(DiracDirection::new(t, 1.0)),
         Transport::Importance => {
-            aether_core::refract(given, Vec3::Z, eta)?;
             Either::Right(SmoothRefraction::new(DiracDirection::new(given, 1.0), eta))
         }
     };
