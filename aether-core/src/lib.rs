@@ -18,6 +18,7 @@
 //! * Combinators: [`InFrame`] (frame change), [`Select`] (a discrete choice
 //!   looked up from the value), [`Mixture`] (overlapping lobes, summed),
 //!   [`RussianRoulette`] (termination as an event with probability),
+//!   [`Sometimes`] (a strategy taken for a share of the samples),
 //!   [`Either`], [`Intersect`] (solid angle → area at the hit point),
 //!   [`OnSurface`], [`DiracPoint`], [`AtInfinity`] (environment and
 //!   directional emitters), [`ParallelRays`] (the far disk of a distant
@@ -54,6 +55,7 @@ pub mod primitives;
 mod rng;
 mod sequence;
 mod shift;
+mod sometimes;
 mod split;
 mod strategy;
 mod surface;
@@ -71,6 +73,7 @@ pub use primary::{PrimarySamples, Replay};
 pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use shift::{replay_jacobian, weight_of_shift};
+pub use sometimes::Sometimes;
 pub use split::{Split, densities_of_split, weight_of_split, weights_of_split_variants};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,

@@ -66,9 +66,11 @@ impl<'s, V> Split<'s, V> {
     /// vertices: first, for s = 0..=n, s vertices from the camera and the
     /// rest from the light (index s), with `direct` sampling the last
     /// vertex when the light side would have one; then, with a `portal`
-    /// pair strategy and the share of samples that use it, for k = 1..n − 2,
-    /// k from the camera, the portal's two and the rest from the light
-    /// (index n + k), again with `direct` for a single light vertex. The techniques with at most one camera vertex
+    /// pair strategy, for k = 1..n − 2, k from the camera, the portal's two
+    /// and the rest from the light (index n + k), again with `direct` for a
+    /// single light vertex. A portal taken for a share of the samples only
+    /// says so in its density ([`Sometimes`](crate::Sometimes)). The
+    /// techniques with at most one camera vertex
     /// (splatted, not sampled per pixel) take `splats` samples each; s = 0,
     /// light paths that reach the camera, is sampled only `through_lens`
     /// (a pinhole cannot be hit), and takes no samples otherwise.
@@ -89,7 +91,7 @@ impl<'s, V> Split<'s, V> {
     pub fn bidirectional(
         n: usize,
         direct: Option<StrategyRef<'s, V>>,
-        portal: Option<(StrategyRef<'s, V>, f64)>,
+        portal: Option<StrategyRef<'s, V>>,
         splats: f64,
         through_lens: bool,
     ) -> SmallVec<[Self; 24]> {
@@ -105,14 +107,13 @@ impl<'s, V> Split<'s, V> {
             samples: samples(s),
         });
         let through_portal = (1..n.saturating_sub(1)).filter_map(|k| {
-            let (portal, rate) = portal?;
             Some(Split {
                 camera: k,
-                middle: [(portal, false)]
+                middle: [(portal?, false)]
                     .into_iter()
                     .chain(direct(n - k - 2))
                     .collect(),
-                samples: rate * samples(k),
+                samples: samples(k),
             })
         });
         bidirectional.chain(through_portal).collect()

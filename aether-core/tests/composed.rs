@@ -1,7 +1,8 @@
 //! The harness on composed strategies: a cosine bounce onto a plane, direct
 //! sampling of a sphere light by its cone, a GGX reflection onto a plane,
-//! light sampling by area over two triangles, and a bounce with Russian
-//! roulette, whose termination is an event of probability 1 − q.
+//! light sampling by area over two triangles, a bounce with Russian
+//! roulette, whose termination is an event of probability 1 − q, and a
+//! strategy taken for a share of the samples ([`Sometimes`]).
 
 use aether_core::harness::{Check, Grid, check_strategy};
 use aether_core::primitives::{CosineHemisphere, GgxVisibleNormals, Reflect, UniformCone};
@@ -9,7 +10,7 @@ use aether_core::testing::{
     Bounce, LightSample, RectChart, SphereChart, TestScene, TestVertex, facing_normal,
 };
 use aether_core::{
-    Distribution, Frame, InFrame, Intersect, Prefix, RussianRoulette, Step, Strategy,
+    Distribution, Frame, InFrame, Intersect, Prefix, RussianRoulette, Sometimes, Step, Strategy,
 };
 use glam::Vec3;
 
@@ -169,6 +170,24 @@ fn russian_roulette_termination_is_an_event() {
         .distribution(Prefix::forward(std::slice::from_ref(&x)))
         .density(&hit);
     assert!((d.density(&hit).value() - q * plain.value()).abs() < 1e-12 * plain.value());
+}
+
+#[test]
+fn a_strategy_taken_sometimes_carries_its_share() {
+    let scene = TestScene::open_box();
+    let x = floor_point(&scene);
+    for q in [0.5, 0.9] {
+        let s = Sometimes::new(q, Bounce::new(&scene));
+        let r = passes(&s, &[x], &Grid::new(RectChart::new(&scene, WALL_X), 16));
+        assert!(r.jacobian_checked > 100, "{r}");
+        let d = s.distribution(Prefix::forward(std::slice::from_ref(&x)));
+        assert!((d.density(&Step::Terminated).value() - (1.0 - q)).abs() < 1e-12);
+        let hit = d.sample(&[0.1, 0.5]).expect("taken").value;
+        let plain = Bounce::new(&scene)
+            .distribution(Prefix::forward(std::slice::from_ref(&x)))
+            .density(&hit);
+        assert!((d.density(&hit).value() - q * plain.value()).abs() < 1e-12 * plain.value());
+    }
 }
 
 #[test]

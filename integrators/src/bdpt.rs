@@ -12,7 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, RandomSequence, StrategyRef,
+    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, RandomSequence, Sometimes, StrategyRef,
     weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
@@ -34,8 +34,9 @@ type Path<'a> = RandomSequence<'a, SceneVertex>;
 
 /// The share of samples that also sample portal segments: tridirectional
 /// tracing's extra techniques cost more than BDPT's, and pay off on fewer
-/// paths. MIS counts them as that many samples per pixel sample.
-const PORTAL_SHARE: f32 = 0.25;
+/// paths. The segment strategy is taken with this probability, so its
+/// densities (and with them MIS) count it as that share of a sample.
+const PORTAL_SHARE: f64 = 0.25;
 
 thread_local! {
     /// Densities shared by the connections of one sample.
@@ -69,7 +70,7 @@ pub struct Bdpt<'s> {
     scene: &'s Scene,
     camera: Camera,
     lights: Option<Lights<'s>>,
-    portal: Option<PortalSegment<'s>>,
+    portal: Option<Sometimes<PortalSegment<'s>>>,
     max_vertices: usize,
     roulette: Roulette,
     heuristic: Heuristic,
@@ -126,7 +127,7 @@ impl<'s> Bdpt<'s> {
             return Err("tridirectional path tracing needs a portal: a shape with <boolean name=\"portal\" value=\"true\"/>".into());
         }
         Ok(Bdpt {
-            portal: Some(PortalSegment::new(scene, 0)?),
+            portal: Some(Sometimes::new(PORTAL_SHARE, PortalSegment::new(scene, 0)?)),
             ..Bdpt::new(scene)?
         })
     }
@@ -307,16 +308,15 @@ impl Bdpt<'_> {
         for s in 1..=cam.len() {
             radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
         }
-        // Portal segments for a share of the samples, each counting 1 / share.
-        let share = self.portal.is_some() && run.rng.next_f32() < PORTAL_SHARE;
-        let Some(portal) = self.portal.as_ref().filter(|_| share) else {
+        let Some(portal) = self.portal.as_ref() else {
             return radiance.as_vec3();
         };
-        // One line through the portal for each side the camera vertices are on.
+        // One line through the portal for each side the camera vertices are
+        // on, for a share of the samples (incomplete otherwise).
         let mut lines = [None, None];
         for k in 1..=cam.len().min(max.saturating_sub(2)) {
             let c = &cam.vertices()[k - 1];
-            let line = lines[portal.side(c)].get_or_insert_with(|| {
+            let line = lines[portal.inner().side(c)].get_or_insert_with(|| {
                 let mut line = RandomSequence::given([*c]);
                 line.append_pair(portal).sample(run.rng);
                 line
@@ -504,8 +504,7 @@ impl<'s> Bdpt<'s> {
 
     /// The MIS weights of `path` for the pixels of `looks`, the camera
     /// direction strategies of each, against every split of it, and its
-    /// density under its own times the share of samples that use it (zero,
-    /// or not finite, where it has none).
+    /// density under its own (zero, or not finite, where it has none).
     fn weights<'a>(
         &'a self,
         kit: &'a Kit<'_, 's>,
@@ -513,13 +512,13 @@ impl<'s> Bdpt<'s> {
         own: Split,
         path: &Path<'_>,
     ) -> SmallVec<[(f64, f64); 16]> {
-        let (n, share) = (path.len(), f64::from(PORTAL_SHARE));
-        let portal = self.portal.as_ref().map(|p| (StrategyRef::Two(p), share));
+        let n = path.len();
+        let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
         let (direct, splats) = (Some(one(&kit.direct)), self.splats);
         let splits = aether_core::Split::bidirectional(n, direct, portal, splats, self.lens);
-        let (index, share) = match own {
-            Split::Bdpt(s) => (s, 1.0),
-            Split::Portal(k) => (n + k, share),
+        let index = match own {
+            Split::Bdpt(s) => s,
+            Split::Portal(k) => n + k,
         };
         // Each pixel's camera direction takes the place of `look` in turn.
         let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
@@ -528,6 +527,6 @@ impl<'s> Bdpt<'s> {
             let (h, c) = (self.heuristic, Some(cache));
             weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
         });
-        found.iter().map(|&(w, p)| (w, p.value() * share)).collect()
+        found.iter().map(|&(w, p)| (w, p.value())).collect()
     }
 }
