@@ -1,8 +1,8 @@
 //! The harness must be able to fail: deliberately wrong primitives.
 
-use aether_core::harness::{Check, Failure, Grid, SphereDirections, check};
+use aether_core::harness::{Categories, Check, Failure, Grid, SphereDirections, check};
 use aether_core::primitives::{
-    CosineHemisphere, DiscreteDistribution, SmoothRefraction, UniformHemisphere,
+    CosineHemisphere, DiscreteDistribution, SmoothRefraction, UniformCells, UniformHemisphere,
 };
 use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
 use glam::Vec3;
@@ -166,6 +166,41 @@ fn wrong_inverse_fails_the_inversion_check() {
 fn forgotten_lobe_fails_the_chi_square_test() {
     let d = ForgetfulMixture(DiscreteDistribution::new(&[0.7, 0.3]).unwrap());
     assert!(matches!(run(&d), Failure::ChiSquare { .. }));
+}
+
+/// A pixel choice on a 7 × 5 film whose probability counts the columns
+/// only, in both modes: the estimate of the pixel it picks would be
+/// weighted by 7, not 35.
+struct ColumnsOnly(UniformCells);
+
+impl Distribution for ColumnsOnly {
+    type Value = usize;
+    fn dims(&self) -> usize {
+        2
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<usize>> {
+        let s = self.0.sample(u)?;
+        Some(Sample::new(s.value, self.density(&s.value)))
+    }
+    fn density(&self, i: &usize) -> Density {
+        self.0.density(i).scale(5.0)
+    }
+    fn invert(&self, i: &usize) -> Option<Uniforms> {
+        self.0.invert(i)
+    }
+}
+
+#[test]
+fn a_pixel_choice_that_forgets_the_rows_fails_the_chi_square_test() {
+    let d = ColumnsOnly(UniformCells::new(7, 5));
+    let failure = check(&d, &Categories(35), &Check::default()).expect_err("must fail");
+    assert!(
+        matches!(
+            failure,
+            Failure::ChiSquare { .. } | Failure::IntegralAboveOne { .. }
+        ),
+        "{failure}"
+    );
 }
 
 /// Cosine directions that record density zero: produced, yet "impossible".

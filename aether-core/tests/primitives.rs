@@ -39,6 +39,16 @@ fn discrete_distribution() {
 }
 
 #[test]
+fn uniform_cells() {
+    // A film of 7 × 5 pixels, and a choice among 4 techniques.
+    for (columns, rows) in [(7, 5), (4, 1)] {
+        let d = UniformCells::new(columns, rows);
+        let r = run(&d, &Categories(d.len()));
+        assert!((r.integral - 1.0).abs() < 1e-12, "{r}");
+    }
+}
+
+#[test]
 fn uniform_disk() {
     run(&UniformDisk::new(2.5), &Grid::new(Disk(2.5), 16));
 }

@@ -36,7 +36,7 @@ pub use piecewise::{PiecewiseConstant1D, PiecewiseConstant2D};
 pub use planar::{UniformDisk, UniformTriangle};
 pub use projections::{Affine2, Equirect, Gnomonic, Planar, SpherePoint};
 pub use scattering::{DiracDirection, Reflect, Refract, SmoothRefraction};
-pub use uniform::{UniformInterval, UniformSquare};
+pub use uniform::{UniformCells, UniformInterval, UniformSquare};
 
 use std::f64::consts::PI;
 

@@ -81,3 +81,97 @@ impl Distribution for UniformSquare {
         inside.then(|| smallvec![p.x, p.y])
     }
 }
+
+/// The cells of a `columns` × `rows` grid, each equally likely: the pixel
+/// a primary-sample-space sampler picks, or one of several techniques
+/// (`rows` = 1, read from one uniform). The first uniform picks the
+/// column and the second the row, so that a small change of the uniforms
+/// moves to a nearby cell.
+/// Values are row-major indices; [`cell`](Self::cell) gives the column
+/// and row.
+///
+/// Density: 1 / (columns · rows), discrete.
+///
+/// ```
+/// use aether_core::{Distribution, primitives::UniformCells};
+/// let pixels = UniformCells::new(4, 2);
+/// let s = pixels.sample(&[0.3, 0.9]).unwrap();
+/// assert_eq!(pixels.cell(s.value), [1, 1]);
+/// assert_eq!(s.density.value(), 1.0 / 8.0);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UniformCells {
+    columns: u32,
+    rows: u32,
+}
+
+impl UniformCells {
+    /// A grid of `columns` × `rows` cells (each at least one).
+    #[must_use]
+    pub fn new(columns: u32, rows: u32) -> Self {
+        UniformCells {
+            columns: columns.max(1),
+            rows: rows.max(1),
+        }
+    }
+
+    /// The number of cells.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.columns as usize * self.rows as usize
+    }
+
+    /// Never true: a grid has at least one cell.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// The column and row of cell `index`.
+    #[must_use]
+    pub fn cell(&self, index: usize) -> [u32; 2] {
+        let c = self.columns as usize;
+        [(index % c) as u32, (index / c) as u32]
+    }
+
+    fn pdf(&self) -> Density {
+        Density::discrete(1.0 / self.len() as f64)
+    }
+}
+
+impl Distribution for UniformCells {
+    type Value = usize;
+    fn dims(&self) -> usize {
+        if self.rows == 1 { 1 } else { 2 }
+    }
+    fn sample(&self, u: &[f32]) -> Option<Sample<usize>> {
+        // In f64: a film of a million columns still picks every one.
+        let pick = |u: f32, n: u32| ((f64::from(u) * f64::from(n)) as u32).min(n - 1);
+        let y = if self.rows == 1 {
+            0
+        } else {
+            pick(u[1], self.rows)
+        };
+        let x = pick(u[0], self.columns);
+        Some(Sample::new(
+            y as usize * self.columns as usize + x as usize,
+            self.pdf(),
+        ))
+    }
+    fn density(&self, i: &usize) -> Density {
+        if *i < self.len() {
+            self.pdf()
+        } else {
+            Density::zero(Measure::Discrete)
+        }
+    }
+    fn invert(&self, i: &usize) -> Option<Uniforms> {
+        let [x, y] = (*i < self.len()).then(|| self.cell(*i))?;
+        let middle = |k: u32, n: u32| below_one(((f64::from(k) + 0.5) / f64::from(n)) as f32);
+        let mut u = smallvec![middle(x, self.columns)];
+        if self.rows > 1 {
+            u.push(middle(y, self.rows));
+        }
+        Some(u)
+    }
+}

@@ -13,7 +13,8 @@
 //!   by MIS against the others of its length and multiplied by their
 //!   number.
 
-use aether_core::{Pcg32, PrimarySamples, UniformSource};
+use aether_core::primitives::UniformCells;
+use aether_core::{Distribution, Pcg32, PrimarySamples, Sample, UniformSource};
 use aether_strategies::scene::Scene;
 
 use super::{Sampler, UNLIMITED_VERTICES, target};
@@ -28,13 +29,43 @@ pub struct State {
     f: f64,
 }
 
-/// The pixel two uniforms pick in `scene`'s crop window, and the number of
-/// pixels there.
-pub(super) fn pixel(scene: &Scene, u: &mut dyn UniformSource) -> ([u32; 2], f32) {
-    let [cx, cy, cw, ch] = scene.film.crop;
-    let pick = |u: f32, n: u32| ((u * n as f32) as u32).min(n - 1);
-    let p = [cx + pick(u.next_f32(), cw), cy + pick(u.next_f32(), ch)];
-    (p, cw as f32 * ch as f32)
+/// The pixels of a scene's crop window, each picked with equal
+/// probability by two uniforms: a sample's camera estimate counts once per
+/// pixel because its density says so, not by a factor written here.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Pixels {
+    origin: [u32; 2],
+    cells: UniformCells,
+}
+
+impl Pixels {
+    /// The crop window of `scene`.
+    pub(super) fn of(scene: &Scene) -> Self {
+        let [cx, cy, cw, ch] = scene.film.crop;
+        Pixels {
+            origin: [cx, cy],
+            cells: UniformCells::new(cw, ch),
+        }
+    }
+
+    /// The pixel the next two uniforms of `u` pick, and its probability.
+    pub(super) fn pick(&self, u: &mut dyn UniformSource) -> ([u32; 2], f64) {
+        let s = draw(&self.cells, u);
+        let [x, y] = self.cells.cell(s.value);
+        ([self.origin[0] + x, self.origin[1] + y], s.density.value())
+    }
+
+    /// The probability of each pixel.
+    pub(super) fn probability(&self) -> f64 {
+        self.cells.density(&0).value()
+    }
+}
+
+/// A sample of `d` from the next uniforms of `u`.
+fn draw<D: Distribution>(d: &D, u: &mut dyn UniformSource) -> Sample<D::Value> {
+    let uniforms = [u.next_f32(), u.next_f32()];
+    d.sample(&uniforms[..d.dims()])
+        .expect("a uniform choice always samples")
 }
 
 /// A large or a small step from `current` into `proposal`, its evaluation
@@ -63,7 +94,7 @@ fn step(
 /// PSSMLT over BDPT.
 #[derive(Debug)]
 pub struct Pssmlt<'s> {
-    scene: &'s Scene,
+    pixels: Pixels,
     bdpt: Bdpt<'s>,
     large_step: f64,
 }
@@ -75,7 +106,7 @@ impl<'s> Pssmlt<'s> {
     /// If BDPT cannot be built for the scene.
     pub fn new(scene: &'s Scene) -> Result<Self, String> {
         Ok(Pssmlt {
-            scene,
+            pixels: Pixels::of(scene),
             bdpt: Bdpt::new(scene)?,
             large_step: scene.integrator.metropolis.large_step,
         })
@@ -94,12 +125,10 @@ impl<'s> Pssmlt<'s> {
     /// lacks from `fresh`) and records its contributions and F.
     fn evaluate(&self, state: &mut State, fresh: &mut Pcg32) {
         let mut u = state.samples.replay(fresh);
-        let (pixel, pixels) = pixel(self.scene, &mut u);
+        let (pixel, p) = self.pixels.pick(&mut u);
         state.contributions.clear();
         let camera = self.bdpt.sample(pixel, &mut u, &mut state.contributions);
-        // A pixel picked with probability 1 / pixels: its estimate counts
-        // that many times.
-        state.contributions.push((pixel, camera * pixels));
+        state.contributions.push((pixel, camera / p as f32));
         state.f = target(&state.contributions);
     }
 }
@@ -132,7 +161,7 @@ impl Sampler for Pssmlt<'_> {
 /// Multiplexed MLT over BDPT: one class per path length.
 #[derive(Debug)]
 pub struct Mmlt<'s> {
-    scene: &'s Scene,
+    pixels: Pixels,
     bdpt: Bdpt<'s>,
     large_step: f64,
     max_vertices: usize,
@@ -148,7 +177,7 @@ impl<'s> Mmlt<'s> {
     pub fn new(scene: &'s Scene) -> Result<Self, String> {
         let bdpt = Bdpt::new(scene)?;
         Ok(Mmlt {
-            scene,
+            pixels: Pixels::of(scene),
             max_vertices: bdpt.max_vertices().min(UNLIMITED_VERTICES),
             bdpt,
             large_step: scene.integrator.metropolis.large_step,
@@ -170,20 +199,21 @@ impl<'s> Mmlt<'s> {
         let n = class + 2;
         let mut u = state.samples.replay(fresh);
         let techniques = self.bdpt.techniques(n);
-        let first = n + 1 - techniques;
-        let s = first + ((u.next_f32() * techniques as f32) as usize).min(techniques - 1);
-        let (pixel, pixels) = pixel(self.scene, &mut u);
+        let technique = draw(&UniformCells::new(techniques as u32, 1), &mut u);
+        let s = n + 1 - techniques + technique.value;
+        let (pixel, p) = self.pixels.pick(&mut u);
         state.contributions.clear();
         let camera = self
             .bdpt
             .sample_technique(pixel, (n, s), &mut u, &mut state.contributions);
-        // The technique was picked with probability 1 / techniques.
-        let count = techniques as f32;
+        let chosen = technique.density.value() as f32;
         for (_, c) in &mut state.contributions {
-            *c *= count;
+            *c /= chosen;
         }
         if camera != glam::Vec3::ZERO {
-            state.contributions.push((pixel, camera * pixels * count));
+            state
+                .contributions
+                .push((pixel, camera / (p as f32 * chosen)));
         }
         state.f = target(&state.contributions);
     }

@@ -21,6 +21,7 @@ use aether_strategies::vertex::SceneVertex;
 use glam::DVec3;
 use smallvec::SmallVec;
 
+use super::primary::Pixels;
 use super::{MltSettings, Sampler, UNLIMITED_VERTICES, crop_film, pick, run_chains, target};
 use crate::bdpt::{Bdpt, SeedPath};
 use crate::direct::DirectLighting;
@@ -208,20 +209,19 @@ impl<'s> VeachMlt<'s> {
         if seed.vertices.len() <= self.direct_vertices {
             return 0.0;
         }
-        let [_, _, cw, ch] = self.scene.film.crop;
-        let pixels = if seed.splat {
+        let picked = if seed.splat {
             1.0
         } else {
-            f64::from(cw) * f64::from(ch)
+            Pixels::of(self.scene).probability()
         };
-        let y = luminance(seed.weighted.as_vec3().to_array()) * pixels;
+        let y = luminance(seed.weighted.as_vec3().to_array()) / picked;
         if y.is_finite() && y > 0.0 { y } else { 0.0 }
     }
 
     /// Runs one BDPT sample from `stream` at a pixel it picks, and hands
     /// its paths to `use_seeds`.
     fn seed_sample<T>(&self, stream: &mut Pcg32, use_seeds: impl FnOnce(&[SeedPath]) -> T) -> T {
-        let (pixel, _) = super::primary::pixel(self.scene, stream);
+        let (pixel, _) = Pixels::of(self.scene).pick(stream);
         SEEDS.with_borrow_mut(|(seeds, splats)| {
             seeds.clear();
             splats.clear();
