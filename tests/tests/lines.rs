@@ -114,11 +114,11 @@ fn each_integrator_stays_within_its_budget() {
     // Direct lighting shares the path tracer's MIS weight.
     let weight = function_lines(&path, "impl Estimator for PathTracer", "weight");
     let direct_lines = function_lines(&read("direct.rs"), "for DirectLighting", "sample") + weight;
-    // The portal's share: its part of the sampling loop, and its strategy
-    // and technique index in the weights.
+    // The portal's part of the sampling loop, and its strategy and
+    // technique index in the weights.
     let tridir_lines = lines_between(
         &bdpt,
-        "// Portal segments for a share",
+        "let Some(portal) = self.portal.as_ref() else",
         "\n        radiance.as_vec3()\n    }\n}",
     ) + 2;
     // BDPT: its subpaths, joins, estimates and MIS weights; not its
