@@ -294,23 +294,18 @@ impl<'a, 's> Mutations<'a, 's> {
         let light = n + 1 - kd - eye;
         m.copy_light(x, n - light..n)?;
         let kept = eye + light;
+        // At least two vertices and the kept ones, and a new one if only
+        // one edge was deleted (else the proposal would be the path itself).
+        let allowed = |l: usize| l >= kept.max(2) && (kd > 1 || l > kept);
         let lengths: SmallVec<[f64; 40]> = (0..=self.settings.max_vertices)
-            .map(|l| {
-                if l < 2 || l < kept || (kd == 1 && l == kept) {
-                    0.0
-                } else {
-                    falloff(l as i64 - n as i64)
-                }
-            })
+            .map(|l| f64::from(u8::from(allowed(l))) * falloff(l as i64 - n as i64))
             .collect();
         let length = m.choose_length(&lengths)?;
         let added = length - kept;
         let on_eye = m.choose_uniform(added + 1)?;
         let on_light = added - on_eye;
-        let (film, lens) = (
-            FilmDirection::new(self.camera, self.scene),
-            self.camera.position(),
-        );
+        let film = FilmDirection::new(self.camera, self.scene);
+        let lens = self.camera.position();
         for i in eye..eye + on_eye {
             m.eye(self.eye_strategy(i, &film, &lens))?;
         }

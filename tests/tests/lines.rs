@@ -2,7 +2,8 @@
 //! (non-blank, non-comment lines in the bodies of its functions), and
 //! checks them against their budgets: strategies under 40, and the logic of
 //! the integrators (sampling, MIS, estimate; not the render loop) at most
-//! direct 35, path 50, BDPT 80 and tridirectional BDPT + 20.
+//! direct 35, path 50, BDPT 80 and tridirectional BDPT + 20; and each
+//! Metropolis mutation under 40.
 
 use std::path::Path;
 
@@ -150,4 +151,29 @@ fn each_integrator_stays_within_its_budget() {
     assert!(tridir_lines <= 20, "the portal adds {tridir_lines} lines");
     assert!(light_lines <= 50, "light has {light_lines} lines");
     assert!(bdpt_lines <= 80, "BDPT has {bdpt_lines} lines");
+}
+
+/// Each of Veach's mutations reads as its algorithm: at most 40 lines of
+/// proposal in its own function (its small named helpers, such as where a
+/// specular chain ends, are not counted, as the integrators' are not).
+#[test]
+fn each_metropolis_mutation_is_under_forty_lines() {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../aether-strategies/src/mutations.rs");
+    let source = std::fs::read_to_string(file).unwrap();
+    let after = "impl<'a, 's> Mutations<'a, 's>";
+    let rows = [
+        (
+            "bidirectional",
+            function_lines(&source, after, "bidirectional"),
+        ),
+        ("lens", function_lines(&source, after, "lens")),
+        ("caustic", function_lines(&source, after, "caustic")),
+        ("multi-chain", function_lines(&source, after, "multi_chain")),
+    ];
+    for (name, lines) in rows {
+        println!("{name:>14} mutation: {lines:>3} lines (budget 40)");
+    }
+    for (name, lines) in rows {
+        assert!(lines <= 40, "the {name} mutation has {lines} lines");
+    }
 }

@@ -253,7 +253,8 @@ fn film_strategies_pass_the_harness_from_real_camera_vertices() {
         // Film offsets of 0.1 to r_max pixels subtend at least ~0.05 pixel
         // angles (at the film's corners) and at most r_max of them.
         let angles = Angles::Log(0.02 * pixel, 1.5 * f64::from(r_max) * pixel);
-        let chart = Grid::new(Cone::new(&scene, lens, axis, angles), 16);
+        // Noisy at ~1e-3 through f32 hits, as the narrow cones below.
+        let chart = Grid::new(Cone::new(&scene, lens, axis, angles), 16).with_tolerance(1e-3);
         let strategy = PerturbedFilm::new(&camera, &scene, center, offsets);
         let report = passes(
             &name,
