@@ -16,6 +16,21 @@ use aether_strategies::spectrum::luminance;
 use aether_strategies::vertex::SceneVertex;
 use integrators::render::{Settings, render};
 
+/// Aether's cbox-sphere (a metal and a glass sphere in the Cornell box: the
+/// specular chains Veach's perturbations follow) at 64×48 pixels.
+///
+/// # Panics
+/// If the scene does not load.
+#[must_use]
+pub fn cbox_sphere_small() -> Scene {
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/scenes/aether/cbox-sphere/cbox-sphere-mlt-aether.xml");
+    let mut scene = Scene::load(&file, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"));
+    let film = &mut scene.film;
+    (film.width, film.height, film.crop) = (64, 48, [0, 0, 64, 48]);
+    scene
+}
+
 /// Loads a scene from Mitsuba XML text, written to a fresh temporary file
 /// (with `files`, name and contents, beside it).
 ///

@@ -18,9 +18,7 @@
 //! angle) and of azimuth, each cell's points being the first hits of its
 //! directions, with the solid angle → area Jacobian r² / |cos θ|.
 
-use std::collections::HashMap;
 use std::f64::consts::PI;
-use std::path::Path;
 
 use aether_core::harness::{Check, Grid, Parameterization, check_strategy};
 use aether_core::primitives::{ExponentialCone, ExponentialDisk};
@@ -32,15 +30,7 @@ use aether_strategies::vertex::{SceneVertex, Site};
 use glam::{DVec3, Vec3};
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
-
-fn cbox_sphere() -> Scene {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/scenes/aether/cbox-sphere/cbox-sphere-mlt-aether.xml");
-    let mut scene = Scene::load(&file, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"));
-    let film = &mut scene.film;
-    (film.width, film.height, film.crop) = (64, 48, [0, 0, 64, 48]);
-    scene
-}
+use tests::cbox_sphere_small;
 
 /// The primitives' tolerances (agreement 1e-4, Jacobian 1e-3) and 10⁶
 /// samples for the chi-square test.
@@ -224,9 +214,10 @@ fn passes(
 
 #[test]
 fn film_strategies_pass_the_harness_from_real_camera_vertices() {
-    let scene = cbox_sphere();
+    let scene = cbox_sphere_small();
     let camera = Camera::new(&scene).unwrap();
-    let settings = MutationSettings::new(64, 48, 8);
+    let (width, height) = (scene.film.width, scene.film.height);
+    let settings = MutationSettings::new(width, height, 8);
     let (r_min, r_max) = settings.lens_offsets;
     let offsets = ExponentialDisk::new(r_min, r_max);
     let pixel = f64::from(camera.pixel_angle());
@@ -264,8 +255,8 @@ fn film_strategies_pass_the_harness_from_real_camera_vertices() {
         // the film's edge the part off the film is void.
         let on_film = center.x - r_max >= 0.0
             && center.y - r_max >= 0.0
-            && center.x + r_max <= 64.0
-            && center.y + r_max <= 48.0;
+            && center.x + r_max <= width as f32
+            && center.y + r_max <= height as f32;
         if on_film {
             assert!(
                 report.integral > 0.99,
@@ -337,8 +328,8 @@ fn conditioning(
 
 #[test]
 fn perturbed_directions_pass_the_harness_from_real_path_vertices() {
-    let scene = cbox_sphere();
-    let settings = MutationSettings::new(64, 48, 8);
+    let scene = cbox_sphere_small();
+    let settings = MutationSettings::new(scene.film.width, scene.film.height, 8);
     let all = paths(&scene);
     let (narrow_min, narrow_max) = settings.chain_angles;
     for (case, x, axis) in conditioning(&scene, &all) {

@@ -13,9 +13,6 @@
 //!   perturbation's reverse cone, built from y, may miss x in rare cases);
 //! * f(x) T(y|x) a(y|x) = f(y) T(x|y) a(x|y) to relative error 1e-6.
 
-use std::collections::HashMap;
-use std::path::Path;
-
 use aether_core::{ChainPath, Pcg32, acceptance, propose, transition_density};
 use aether_strategies::mutations::{Kind, Only};
 use aether_strategies::scene::Scene;
@@ -23,6 +20,7 @@ use aether_strategies::vertex::SceneVertex;
 use integrators::cornell::cornell_box;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
+use tests::cbox_sphere_small;
 
 /// Pairs checked per mutation and scene (at most).
 const PAIRS: usize = 150;
@@ -40,15 +38,6 @@ const PAIRS: usize = 150;
 ///
 /// [`MutationSettings::MIN_ANGLE`]: aether_strategies::mutations::MutationSettings::MIN_ANGLE
 const SLACK: f64 = 0.05;
-
-fn cbox_sphere() -> Scene {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/scenes/aether/cbox-sphere/cbox-sphere-mlt-aether.xml");
-    let mut scene = Scene::load(&file, &HashMap::new()).unwrap_or_else(|e| panic!("{e}"));
-    let film = &mut scene.film;
-    (film.width, film.height, film.crop) = (64, 48, [0, 0, 64, 48]);
-    scene
-}
 
 /// Seed paths from BDPT samples, up to `count`, that `kind` applies to.
 fn paths(mlt: &VeachMlt<'_>, kind: Kind, count: usize) -> Vec<ChainPath<SceneVertex>> {
@@ -146,7 +135,7 @@ fn bidirectional_mutation_is_in_detailed_balance() {
     let mut scene = cornell_box(32, 32, 1);
     scene.integrator.max_depth = 5;
     check("Cornell box", &scene, Kind::Bidirectional);
-    check("cbox-sphere", &cbox_sphere(), Kind::Bidirectional);
+    check("cbox-sphere", &cbox_sphere_small(), Kind::Bidirectional);
 }
 
 #[test]
@@ -154,15 +143,15 @@ fn lens_perturbation_is_in_detailed_balance() {
     let mut scene = cornell_box(32, 32, 1);
     scene.integrator.max_depth = 5;
     check("Cornell box", &scene, Kind::Lens);
-    check("cbox-sphere", &cbox_sphere(), Kind::Lens);
+    check("cbox-sphere", &cbox_sphere_small(), Kind::Lens);
 }
 
 #[test]
 fn caustic_perturbation_is_in_detailed_balance() {
-    check("cbox-sphere", &cbox_sphere(), Kind::Caustic);
+    check("cbox-sphere", &cbox_sphere_small(), Kind::Caustic);
 }
 
 #[test]
 fn multi_chain_perturbation_is_in_detailed_balance() {
-    check("cbox-sphere", &cbox_sphere(), Kind::MultiChain);
+    check("cbox-sphere", &cbox_sphere_small(), Kind::MultiChain);
 }
