@@ -74,6 +74,17 @@ impl<V: Vertex> ChainPath<V> {
         self.vertices.is_empty()
     }
 
+    /// This path with vertex `i` replaced by the new vertex `v` (a new
+    /// identity: it is not the vertex it replaces), or `None` if there is
+    /// no vertex `i`.
+    #[must_use]
+    pub fn with_vertex(&self, i: usize, v: V) -> Option<Self> {
+        let mut moved = self.clone();
+        *moved.vertices.get_mut(i)? = v;
+        moved.ids[i] = fresh_id();
+        Some(moved)
+    }
+
     /// True if the edge from vertex `i` to `i + 1` is an edge of `other`,
     /// both ends copied from it (so that it needs no new visibility test).
     #[must_use]

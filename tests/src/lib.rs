@@ -4,6 +4,7 @@
 //! and the statistical comparison of two integrators' images.
 #![deny(unsafe_code)]
 
+pub mod cone;
 pub mod fuzz;
 
 use std::collections::HashMap;
@@ -61,6 +62,13 @@ pub struct Estimate {
     pub mean: Vec<f64>,
     /// Variance of that mean (the sample variance over renders, over their number).
     pub variance: Vec<f64>,
+    /// Each render's luminance per pixel.
+    pub renders_luminance: Vec<Vec<f64>>,
+    /// True if the pixels' errors are correlated, as a Metropolis image's
+    /// are (its total is its normalisation, so they cancel): the error of
+    /// a mean over pixels then comes from how the renders' means vary
+    /// rather than from the pixels' variances.
+    pub correlated_pixels: bool,
 }
 
 impl Estimate {
@@ -94,13 +102,15 @@ impl Estimate {
         assert!(images.len() >= 2, "a variance needs two images");
         let n = images[0].len();
         let (mut sum, mut sum2) = (vec![0.0; n], vec![0.0; n]);
+        let mut renders_luminance = Vec::with_capacity(images.len());
         for image in images {
             assert_eq!(image.len(), n, "images of one size");
-            for (i, c) in image.iter().enumerate() {
-                let y = luminance(*c);
+            let y: Vec<f64> = image.iter().map(|c| luminance(*c)).collect();
+            for (i, y) in y.iter().enumerate() {
                 sum[i] += y;
                 sum2[i] += y * y;
             }
+            renders_luminance.push(y);
         }
         let renders = images.len() as u32;
         let k = f64::from(renders);
@@ -115,7 +125,30 @@ impl Estimate {
             renders,
             mean,
             variance,
+            renders_luminance,
+            correlated_pixels: false,
         }
+    }
+
+    /// The variance of the sum over the pixels `keep` holds: the sum of
+    /// their variances, or for correlated pixels the sample variance of the
+    /// renders' sums there, over their number.
+    #[must_use]
+    pub fn mean_variance(&self, keep: impl Fn(usize) -> bool) -> f64 {
+        if !self.correlated_pixels {
+            return (0..self.variance.len())
+                .filter(|&i| keep(i))
+                .map(|i| self.variance[i])
+                .sum();
+        }
+        let means: Vec<f64> = self
+            .renders_luminance
+            .iter()
+            .map(|y| (0..y.len()).filter(|&i| keep(i)).map(|i| y[i]).sum())
+            .collect();
+        let k = means.len() as f64;
+        let m = means.iter().sum::<f64>() / k;
+        means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0) / k
     }
 
     /// The mean over the image.
@@ -124,10 +157,10 @@ impl Estimate {
         self.mean.iter().sum::<f64>() / self.mean.len() as f64
     }
 
-    /// The standard error of [`image_mean`](Self::image_mean) (pixels independent).
+    /// The standard error of [`image_mean`](Self::image_mean).
     #[must_use]
     pub fn image_mean_error(&self) -> f64 {
-        self.variance.iter().sum::<f64>().sqrt() / self.mean.len() as f64
+        self.mean_variance(|_| true).sqrt() / self.mean.len() as f64
     }
 }
 
@@ -198,16 +231,16 @@ pub fn agreement(
     let df = a.renders.min(b.renders) as usize - 1;
     let critical = T_CRITICAL_1_PERCENT[df - 1];
     let (mut failures, mut tested) = (0, 0);
-    let (mut ma, mut mb, mut var) = (0.0, 0.0, 0.0);
+    let (mut ma, mut mb) = (0.0, 0.0);
+    let in_means = |i: usize| !skip.is_some_and(|s| s[i]) && !edges.is_some_and(|e| e[i]);
     for i in 0..a.mean.len() {
         if skip.is_some_and(|s| s[i]) {
             continue;
         }
         let v = a.variance[i] + b.variance[i];
-        if !edges.is_some_and(|e| e[i]) {
+        if in_means(i) {
             ma += a.mean[i];
             mb += b.mean[i];
-            var += v;
         }
         if v <= 0.0 {
             continue;
@@ -217,7 +250,7 @@ pub fn agreement(
             failures += 1;
         }
     }
-    let error = var.sqrt() / mb;
+    let error = (a.mean_variance(in_means) + b.mean_variance(in_means)).sqrt() / mb;
     let level = 0.01;
     Agreement {
         relative_difference: (ma - mb) / mb,
@@ -354,4 +387,34 @@ pub fn lines_between(source: &str, start: &str, end: &str) -> usize {
         .map(str::trim)
         .filter(|l| !l.is_empty() && !l.starts_with("//"))
         .count()
+}
+
+/// A caustic room: a smooth glass sphere over the diffuse floor of a closed
+/// room under a small spherical light, and a smooth mirror sphere beside it
+/// that the camera sees the floor in. Light reaches the floor through the
+/// glass (L S S D E paths: the caustic perturbation's) and the camera sees
+/// that caustic in the mirror (E S D S S L: the multi-chain
+/// perturbation's), at `width` × `height` pixels with a box filter.
+///
+/// # Panics
+/// If the scene does not load.
+#[must_use]
+pub fn caustic_room(width: u32, height: u32, max_depth: i32) -> Scene {
+    let xml = format!(
+        r#"<scene version="0.5.0">
+            <integrator type="bdpt"><integer name="maxDepth" value="{max_depth}"/></integrator>
+            <shape type="cube"><boolean name="flipNormals" value="true"/>
+                <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.55, 0.5"/></bsdf></shape>
+            <shape type="sphere"><point name="center" x="-0.2" y="-0.55" z="-0.1"/><float name="radius" value="0.3"/>
+                <bsdf type="dielectric"><float name="intIOR" value="1.5"/><float name="extIOR" value="1"/></bsdf></shape>
+            <shape type="sphere"><point name="center" x="0.55" y="-0.7" z="-0.45"/><float name="radius" value="0.3"/>
+                <bsdf type="conductor"><string name="material" value="none"/></bsdf></shape>
+            <emitter type="point"><point name="position" x="-0.25" y="0.75" z="-0.15"/><rgb name="intensity" value="1"/></emitter>
+            <sensor type="perspective"><float name="fov" value="60"/>
+                <transform name="toWorld"><lookat origin="0.1, 0.1, 0.95" target="-0.05, -0.6, -0.1" up="0, 1, 0"/></transform>
+                <film type="hdrfilm"><integer name="width" value="{width}"/><integer name="height" value="{height}"/>
+                <rfilter type="box"/></film></sensor>
+        </scene>"#
+    );
+    scene_from(&xml, &[])
 }

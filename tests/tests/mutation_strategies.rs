@@ -13,24 +13,23 @@
 //!   the most grazing edge found, about the path's own next edge, with the
 //!   scene's cone and with a wider one.
 //!
-//! The chart is written here, from geometry alone: cells of angle about
-//! the axis (log-spaced for the perturbations, which are log-uniform in
-//! angle) and of azimuth, each cell's points being the first hits of its
-//! directions, with the solid angle → area Jacobian r² / |cos θ|.
+//! The chart ([`tests::cone::Cone`]) is written from geometry alone: cells
+//! of angle about the axis (log-spaced for the perturbations, which are
+//! log-uniform in angle) and of azimuth, each cell's points being the
+//! first hits of its directions.
 
-use std::f64::consts::PI;
-
-use aether_core::harness::{Check, Grid, Parameterization, check_strategy};
+use aether_core::harness::{Check, Grid, check_strategy};
 use aether_core::primitives::{ExponentialCone, ExponentialDisk};
-use aether_core::{ChainPath, Frame, Pcg32, RayCaster, Step};
+use aether_core::{ChainPath, Pcg32};
 use aether_strategies::camera::{Camera, FilmDirection, PerturbedFilm};
 use aether_strategies::mutations::{MutationSettings, PerturbedDirection, Specular};
 use aether_strategies::scene::Scene;
-use aether_strategies::vertex::{SceneVertex, Site};
-use glam::{DVec3, Vec3};
+use aether_strategies::vertex::SceneVertex;
+use glam::Vec3;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
 use tests::cbox_sphere_small;
+use tests::cone::{Angles, Cone};
 
 /// The primitives' tolerances (agreement 1e-4, Jacobian 1e-3) and 10⁶
 /// samples for the chi-square test.
@@ -78,108 +77,6 @@ fn wide_config() -> Check {
     Check {
         jacobian_tolerance: 3e-3,
         ..config()
-    }
-}
-
-/// How the angle to the axis runs over the chart's first coordinate.
-#[derive(Clone, Copy, Debug)]
-enum Angles {
-    /// θ = θ_max · s.
-    Linear(f64),
-    /// θ = θ_min (θ_max / θ_min)^s.
-    Log(f64, f64),
-}
-
-impl Angles {
-    fn theta(self, s: f64) -> f64 {
-        match self {
-            Angles::Linear(max) => max * s,
-            Angles::Log(min, max) => min * (max / min).powf(s),
-        }
-    }
-    fn coord(self, theta: f64) -> f64 {
-        match self {
-            Angles::Linear(max) => theta / max,
-            Angles::Log(min, max) => (theta / min).ln() / (max / min).ln(),
-        }
-    }
-    /// dθ / ds.
-    fn rate(self, s: f64) -> f64 {
-        match self {
-            Angles::Linear(max) => max,
-            Angles::Log(min, max) => self.theta(s) * (max / min).ln(),
-        }
-    }
-}
-
-/// The first hits of the directions about `axis` from `from`, by angle and
-/// azimuth.
-struct Cone<'s> {
-    scene: &'s Scene,
-    from: SceneVertex,
-    frame: Frame,
-    angles: Angles,
-}
-
-impl<'s> Cone<'s> {
-    fn new(scene: &'s Scene, from: SceneVertex, axis: Vec3, angles: Angles) -> Self {
-        Cone {
-            scene,
-            from,
-            frame: Frame::from_normal(axis.normalize()),
-            angles,
-        }
-    }
-
-    fn direction(&self, s: [f64; 2]) -> DVec3 {
-        let (theta, phi) = (self.angles.theta(s[0]), 2.0 * PI * s[1]);
-        let local = DVec3::new(
-            theta.sin() * phi.cos(),
-            theta.sin() * phi.sin(),
-            theta.cos(),
-        );
-        self.frame.to_world(local.as_vec3()).as_dvec3()
-    }
-
-    fn hit(&self, s: [f64; 2]) -> Option<SceneVertex> {
-        let v = self.scene.cast(&self.from, self.direction(s).as_vec3())?;
-        matches!(v.site, Site::Surface { .. }).then_some(v)
-    }
-}
-
-impl Parameterization<Step<SceneVertex>> for Cone<'_> {
-    fn dims(&self) -> usize {
-        2
-    }
-    fn value(&self, s: [f64; 2]) -> Option<Step<SceneVertex>> {
-        self.hit(s).map(Step::Vertex)
-    }
-    fn coords(&self, v: &Step<SceneVertex>) -> Option<[f64; 2]> {
-        let Step::Vertex(v) = v else { return None };
-        let w = (v.position.as_dvec3() - self.from.position.as_dvec3()).normalize();
-        let local = self.frame.to_local(w.as_vec3()).as_dvec3();
-        // θ from the sine and cosine: accurate at the cone's smallest angles.
-        let theta = local.x.hypot(local.y).atan2(local.z);
-        let phi = local.y.atan2(local.x).rem_euclid(2.0 * PI);
-        // A hit's f32 position rounds its angle by ~1e-7 rad, which at a
-        // cone's smallest angle (1e-4 rad) moves the coordinate by ~1e-3:
-        // hits that rounding pushes just past the chart's rim belong to its
-        // rim cells, not off the chart.
-        let s = self.angles.coord(theta);
-        let s = if (-0.01..=1.01).contains(&s) {
-            s.clamp(0.0, 1.0)
-        } else {
-            s
-        };
-        Some([s, phi / (2.0 * PI)])
-    }
-    fn jacobian(&self, s: [f64; 2]) -> f64 {
-        let Some(hit) = self.hit(s) else { return 0.0 };
-        let theta = self.angles.theta(s[0]);
-        let solid_angle = theta.sin() * self.angles.rate(s[0]) * 2.0 * PI;
-        let d = hit.position.as_dvec3() - self.from.position.as_dvec3();
-        let cos = d.normalize().dot(hit.geometric_normal.as_dvec3()).abs();
-        solid_angle * d.length_squared() / cos
     }
 }
 

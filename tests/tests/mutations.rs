@@ -1,5 +1,5 @@
-//! Veach's mutations satisfy detailed balance with the transition densities
-//! the language derives from their sampling code.
+//! Veach's mutations in density mode give the densities they sampled with,
+//! and their moves can be undone.
 //!
 //! For paths x that BDPT finds (F(x) > 0) on the built-in Cornell box and on
 //! cbox-sphere (whose metal and glass spheres make specular chains, so that
@@ -10,10 +10,14 @@
 //!   perturbations (one branch), to the precision of single-precision
 //!   vertices (see `SLACK`);
 //! * the move can be undone: T(x | y) > 0 for nearly every pair (a
-//!   perturbation's reverse cone, built from y, may miss x in rare cases);
-//! * f(x) T(y|x) a(y|x) = f(y) T(x|y) a(x|y) to relative error 1e-6.
+//!   perturbation's reverse cone, built from y, may miss x in rare cases).
+//!
+//! Detailed balance itself, f(x) T(y|x) a(x→y) = f(y) T(x|y) a(y→x), holds
+//! for any positive T under Metropolis–Hastings acceptance and so says
+//! nothing about T: `proposals.rs` checks T against the proposals' own
+//! histogram, and shows a wrong T passing that equality.
 
-use aether_core::{ChainPath, Pcg32, acceptance, propose, transition_density};
+use aether_core::{ChainPath, Pcg32, propose, transition_density};
 use aether_strategies::mutations::{Kind, Only};
 use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
@@ -65,7 +69,6 @@ fn check(name: &str, scene: &Scene, kind: Kind) {
         kind,
     };
     let (mut pairs, mut irreversible, mut tries) = (0, 0, 0);
-    let mut worst: f64 = 0.0;
     let mut gaps = Vec::new();
     let starts = paths(&mlt, kind, PAIRS);
     assert!(
@@ -77,7 +80,6 @@ fn check(name: &str, scene: &Scene, kind: Kind) {
             break;
         }
         tries += 1;
-        let f_x = mlt.target(x, None);
         let Some((y, sampled)) = propose(&only, x, &mut Pcg32::new(5, k as u64)) else {
             continue;
         };
@@ -103,19 +105,13 @@ fn check(name: &str, scene: &Scene, kind: Kind) {
         );
         if backward.value() == 0.0 {
             irreversible += 1;
-            continue;
         }
-        let flow = f_x * forward.value() * acceptance(f_x, f_y, forward, backward);
-        let back = f_y * backward.value() * acceptance(f_y, f_x, backward, forward);
-        let rel = (flow / back - 1.0).abs();
-        worst = worst.max(rel);
-        assert!(rel < 1e-6, "{name} {kind:?}: {flow} vs {back}");
     }
     gaps.sort_by(f64::total_cmp);
     let median = gaps.get(gaps.len() / 2).copied().unwrap_or(0.0);
     let far = gaps.iter().filter(|&&g| g > SLACK).count();
     println!(
-        "{name} {kind:?}: {pairs} pairs of {tries} proposals, {irreversible} without a way back, worst relative error {worst:.2e}; density mode vs sampled density: median gap {median:.1e}, {far} beyond {SLACK}, worst {:.1e}",
+        "{name} {kind:?}: {pairs} pairs of {tries} proposals, {irreversible} without a way back; density mode vs sampled density: median gap {median:.1e}, {far} beyond {SLACK}, worst {:.1e}",
         gaps.last().copied().unwrap_or(0.0)
     );
     assert!(median < 1e-2, "{name} {kind:?}: median gap {median}");
@@ -131,7 +127,7 @@ fn check(name: &str, scene: &Scene, kind: Kind) {
 }
 
 #[test]
-fn bidirectional_mutation_is_in_detailed_balance() {
+fn bidirectional_mutation_densities_agree_and_moves_undo() {
     let mut scene = cornell_box(32, 32, 1);
     scene.integrator.max_depth = 5;
     check("Cornell box", &scene, Kind::Bidirectional);
@@ -139,7 +135,7 @@ fn bidirectional_mutation_is_in_detailed_balance() {
 }
 
 #[test]
-fn lens_perturbation_is_in_detailed_balance() {
+fn lens_perturbation_densities_agree_and_moves_undo() {
     let mut scene = cornell_box(32, 32, 1);
     scene.integrator.max_depth = 5;
     check("Cornell box", &scene, Kind::Lens);
@@ -147,11 +143,11 @@ fn lens_perturbation_is_in_detailed_balance() {
 }
 
 #[test]
-fn caustic_perturbation_is_in_detailed_balance() {
+fn caustic_perturbation_densities_agree_and_moves_undo() {
     check("cbox-sphere", &cbox_sphere_small(), Kind::Caustic);
 }
 
 #[test]
-fn multi_chain_perturbation_is_in_detailed_balance() {
+fn multi_chain_perturbation_densities_agree_and_moves_undo() {
     check("cbox-sphere", &cbox_sphere_small(), Kind::MultiChain);
 }

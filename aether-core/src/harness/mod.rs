@@ -292,6 +292,24 @@ where
     jacobian::check_pointwise(distribution, config)
 }
 
+/// Runs the chi-square test alone, for a distribution that has no inverse
+/// map to check pointwise: a Metropolis proposal seen as a distribution of
+/// paths, which draws as many uniforms as its code asks for and whose
+/// density is the transition density.
+pub fn check_histogram<D>(
+    distribution: &D,
+    chart: &impl Chart<D::Value>,
+    config: &Check,
+) -> Result<Report, Failure>
+where
+    D: Distribution,
+    D::Value: Embed + fmt::Debug,
+{
+    let mut report = Report::default();
+    chi2::check_histogram(distribution, chart, config, &mut report)?;
+    Ok(report)
+}
+
 /// Runs every check on `strategy` conditioned on the vertices `prefix`
 /// (in path order, the last one most recent).
 pub fn check_strategy<V, S>(

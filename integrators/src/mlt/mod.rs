@@ -133,12 +133,24 @@ pub(crate) trait Sampler: Sync {
     }
 
     /// F of an independent sample of `class` drawn from `stream` (summed
-    /// over the sample's candidates).
-    fn bootstrap(&self, class: usize, stream: &mut Pcg32) -> f64;
+    /// over the sample's candidates). `stratum` counts the class's samples
+    /// from a random offset: a sampler that picks a pixel may take pixel
+    /// `stratum` mod their number, each pixel still picked with equal
+    /// probability but the pixels evenly covered, which takes their
+    /// variation out of the normalisation's error.
+    fn bootstrap(&self, class: usize, stratum: u64, stream: &mut Pcg32) -> f64;
 
-    /// Redraws the sample of `class` from `stream` and puts into `state`
-    /// one of its candidates, picked with `rng` in proportion to F.
-    fn start(&self, class: usize, stream: &mut Pcg32, rng: &mut Pcg32, state: &mut Self::State);
+    /// Redraws the sample of `class` and `stratum` from `stream` and puts
+    /// into `state` one of its candidates, picked with `rng` in proportion
+    /// to F.
+    fn start(
+        &self,
+        class: usize,
+        stratum: u64,
+        stream: &mut Pcg32,
+        rng: &mut Pcg32,
+        state: &mut Self::State,
+    );
 
     /// Proposes a move from `current` into `proposal` and returns the
     /// acceptance probability (0 if the proposal failed).
@@ -221,6 +233,10 @@ pub(crate) fn run_chains<S: Sampler>(
         // Bootstrap: sample i belongs to class i mod classes, on stream i;
         // each class gets the number asked for (as pbrt-v3's MMLT does).
         let bootstrap = mlt.bootstrap.max(1) * classes;
+        // Sample i is its class's (i / classes)-th, counted from an offset
+        // drawn from the seed, so that any stratum is equally likely.
+        let offset = u64::from(Pcg32::new(seed, u64::MAX).next_u32());
+        let stratum = |i: u64| offset + i / classes as u64;
         let (boot_rays, boot_nanos) = (AtomicU64::new(0), AtomicU64::new(0));
         let fs: Vec<f64> = (0..bootstrap as u64)
             .into_par_iter()
@@ -229,7 +245,8 @@ pub(crate) fn run_chains<S: Sampler>(
                     return 0.0;
                 }
                 let (rays, nanos) = (rays_cast(), ray_nanos());
-                let f = sampler.bootstrap(i as usize % classes, &mut Pcg32::new(seed, i));
+                let c = i as usize % classes;
+                let f = sampler.bootstrap(c, stratum(i), &mut Pcg32::new(seed, i));
                 boot_rays.fetch_add(rays_cast() - rays, Ordering::Relaxed);
                 boot_nanos.fetch_add(ray_nanos() - nanos, Ordering::Relaxed);
                 f
@@ -280,7 +297,8 @@ pub(crate) fn run_chains<S: Sampler>(
                             let target = f64::from(rng.next_f32()) * sum;
                             let j = sums.partition_point(|&s| s <= target).min(sums.len() - 1);
                             let i = (j * classes + c) as u64;
-                            sampler.start(c, &mut Pcg32::new(seed, i), &mut rng, &mut state);
+                            let stream = &mut Pcg32::new(seed, i);
+                            sampler.start(c, stratum(i), stream, &mut rng, &mut state);
                         }
                         state
                     })

@@ -35,6 +35,7 @@ pub struct State {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Pixels {
     origin: [u32; 2],
+    size: [u32; 2],
     cells: UniformCells,
 }
 
@@ -44,6 +45,7 @@ impl Pixels {
         let [cx, cy, cw, ch] = scene.film.crop;
         Pixels {
             origin: [cx, cy],
+            size: [cw.max(1), ch.max(1)],
             cells: UniformCells::new(cw, ch),
         }
     }
@@ -53,6 +55,15 @@ impl Pixels {
         let s = draw(&self.cells, u);
         let [x, y] = self.cells.cell(s.value);
         ([self.origin[0] + x, self.origin[1] + y], s.density.value())
+    }
+
+    /// Pixel `stratum` mod their number, in rows, and its probability
+    /// (each pixel's, for a stratum that is equally likely any of them).
+    pub(super) fn stratum(&self, stratum: u64) -> ([u32; 2], f64) {
+        let [w, h] = self.size;
+        let k = stratum % (u64::from(w) * u64::from(h));
+        let (x, y) = ((k % u64::from(w)) as u32, (k / u64::from(w)) as u32);
+        ([self.origin[0] + x, self.origin[1] + y], self.probability())
     }
 
     /// The probability of each pixel.
@@ -136,13 +147,20 @@ impl<'s> Pssmlt<'s> {
 impl Sampler for Pssmlt<'_> {
     type State = State;
 
-    fn bootstrap(&self, _class: usize, stream: &mut Pcg32) -> f64 {
+    fn bootstrap(&self, _class: usize, _stratum: u64, stream: &mut Pcg32) -> f64 {
         let mut state = State::default();
         self.evaluate(&mut state, stream);
         state.f
     }
 
-    fn start(&self, _class: usize, stream: &mut Pcg32, _rng: &mut Pcg32, state: &mut State) {
+    fn start(
+        &self,
+        _class: usize,
+        _stratum: u64,
+        stream: &mut Pcg32,
+        _rng: &mut Pcg32,
+        state: &mut State,
+    ) {
         state.samples = PrimarySamples::new();
         self.evaluate(state, stream);
     }
@@ -233,13 +251,20 @@ impl Sampler for Mmlt<'_> {
         self.max_vertices.saturating_sub(1).max(1)
     }
 
-    fn bootstrap(&self, class: usize, stream: &mut Pcg32) -> f64 {
+    fn bootstrap(&self, class: usize, _stratum: u64, stream: &mut Pcg32) -> f64 {
         let mut state = State::default();
         self.evaluate(class, &mut state, stream);
         state.f
     }
 
-    fn start(&self, class: usize, stream: &mut Pcg32, _rng: &mut Pcg32, state: &mut ClassState) {
+    fn start(
+        &self,
+        class: usize,
+        _stratum: u64,
+        stream: &mut Pcg32,
+        _rng: &mut Pcg32,
+        state: &mut ClassState,
+    ) {
         state.class = class;
         state.state.samples = PrimarySamples::new();
         self.evaluate(class, &mut state.state, stream);

@@ -189,7 +189,7 @@ impl<'s> VeachMlt<'s> {
     /// The paths one BDPT sample drawn from `stream` finds, with F > 0:
     /// the candidates the chains start from.
     pub fn seed_paths(&self, stream: &mut Pcg32) -> Vec<ChainPath<SceneVertex>> {
-        let seeds = self.seed_sample(stream, |seeds| {
+        let seeds = self.seed_sample(None, stream, |seeds| {
             seeds
                 .iter()
                 .filter(|s| self.seed_weight(s) > 0.0)
@@ -218,10 +218,19 @@ impl<'s> VeachMlt<'s> {
         if y.is_finite() && y > 0.0 { y } else { 0.0 }
     }
 
-    /// Runs one BDPT sample from `stream` at a pixel it picks, and hands
-    /// its paths to `use_seeds`.
-    fn seed_sample<T>(&self, stream: &mut Pcg32, use_seeds: impl FnOnce(&[SeedPath]) -> T) -> T {
-        let (pixel, _) = Pixels::of(self.scene).pick(stream);
+    /// Runs one BDPT sample from `stream` at the pixel of `stratum` (or
+    /// one the stream picks), and hands its paths to `use_seeds`.
+    fn seed_sample<T>(
+        &self,
+        stratum: Option<u64>,
+        stream: &mut Pcg32,
+        use_seeds: impl FnOnce(&[SeedPath]) -> T,
+    ) -> T {
+        let pixels = Pixels::of(self.scene);
+        let (pixel, _) = match stratum {
+            Some(k) => pixels.stratum(k),
+            None => pixels.pick(stream),
+        };
         SEEDS.with_borrow_mut(|(seeds, splats)| {
             seeds.clear();
             splats.clear();
@@ -234,14 +243,21 @@ impl<'s> VeachMlt<'s> {
 impl Sampler for VeachMlt<'_> {
     type State = State;
 
-    fn bootstrap(&self, _class: usize, stream: &mut Pcg32) -> f64 {
-        self.seed_sample(stream, |seeds| {
+    fn bootstrap(&self, _class: usize, stratum: u64, stream: &mut Pcg32) -> f64 {
+        self.seed_sample(Some(stratum), stream, |seeds| {
             seeds.iter().map(|s| self.seed_weight(s)).sum()
         })
     }
 
-    fn start(&self, _class: usize, stream: &mut Pcg32, rng: &mut Pcg32, state: &mut State) {
-        let path = self.seed_sample(stream, |seeds| {
+    fn start(
+        &self,
+        _class: usize,
+        stratum: u64,
+        stream: &mut Pcg32,
+        rng: &mut Pcg32,
+        state: &mut State,
+    ) {
+        let path = self.seed_sample(Some(stratum), stream, |seeds| {
             let weights = seeds.iter().map(|s| self.seed_weight(s));
             let target = f64::from(rng.next_f32()) * weights.clone().sum::<f64>();
             pick(weights, target).map(|i| ChainPath::new(seeds[i].vertices.iter().copied()))
@@ -256,7 +272,14 @@ impl Sampler for VeachMlt<'_> {
         // the chain count how each fares; T is still the mixture's.
         let weights = mutations.weights(current.path.vertices());
         let target = f64::from(rng.next_f32()) * weights.iter().sum::<f64>();
-        let kind = Kind::ALL[pick(weights, target).unwrap_or(0)];
+        // Where no mutation applies (one alone, for a path it does not
+        // fit), the chain stays, and no mutation is charged with it.
+        let Some(k) = pick(weights, target) else {
+            proposal.contributions.clear();
+            proposal.f = 0.0;
+            return 0.0;
+        };
+        let kind = Kind::ALL[k];
         let only = Only {
             mutations: &mutations,
             kind,
