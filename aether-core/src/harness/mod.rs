@@ -35,6 +35,7 @@
 //! Failures name the check, the uniforms and the expected and actual values.
 
 mod chart;
+mod chart4;
 mod chi2;
 mod jacobian;
 mod mis;
@@ -45,6 +46,7 @@ use std::fmt;
 pub use chart::{
     Categories, Chart, Disk, Grid, Interval, Parameterization, SphereDirections, Square, Triangle,
 };
+pub use chart4::{Grid4, Parameterization4};
 pub use mis::{MisReport, Technique, check_mis};
 pub use stats::chi_square_p_value;
 
@@ -282,8 +284,9 @@ where
 }
 
 /// Runs the pointwise checks only (agreement, inversion, Jacobian), for
-/// values with no chart, such as the four-dimensional pairs of a portal
-/// segment.
+/// values that have no chart, or whose chart is costly, such as the
+/// four-dimensional pairs of a portal segment
+/// (whose chi-square test bins them with a [`Grid4`]).
 pub fn check_pointwise<D>(distribution: &D, config: &Check) -> Result<Report, Failure>
 where
     D: Distribution,
