@@ -6,6 +6,7 @@
 
 pub mod cone;
 pub mod fuzz;
+pub mod proposal;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};

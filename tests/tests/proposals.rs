@@ -20,9 +20,8 @@
 //!
 //! Proposals that move other vertices are counted as "elsewhere", against
 //! one minus the chart's integral. The multi-chain perturbation moves two
-//! vertices freely (the film point and a turn), which a two-dimensional
-//! chart cannot hold: it is checked by density mode against the sampled
-//! densities in `mutations.rs`.
+//! vertices freely (the film point and a turn): `multi_chain.rs` checks it
+//! on a four-dimensional chart.
 //!
 //! Planted faults, as `harness_fails.rs` plants them for primitives: a
 //! mutation whose lens branch doubles its density, and one whose film
@@ -34,68 +33,20 @@
 use aether_core::harness::{Check, Grid, Parameterization, check_histogram};
 use aether_core::primitives::ExponentialDisk;
 use aether_core::{
-    ChainPath, Coords, Density, Distribution, Embed, Measure, Mutation, Mutator, Pcg32, Prefix,
-    Sample, Step, Strategy, Uniforms, acceptance, propose, transition_density,
+    ChainPath, Density, Distribution, Mutation, Mutator, Pcg32, Prefix, Sample, Step, Strategy,
+    Uniforms, acceptance, propose, transition_density,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, PerturbedFilm};
 use aether_strategies::mutations::MutationSettings;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::{Material, Scene};
-use aether_strategies::vertex::{SceneVertex, Site};
+use aether_strategies::vertex::SceneVertex;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
 use tests::caustic_room;
 use tests::cone::{Angles, Cone};
-
-/// A proposal, as a value the harness bins.
-#[derive(Clone, Debug)]
-struct Proposal(ChainPath<SceneVertex>);
-
-impl Embed for Proposal {
-    fn embed(&self, coords: &mut Coords) -> usize {
-        for v in self.0.vertices() {
-            v.position.embed(coords);
-        }
-        2
-    }
-}
-
-/// The proposals of `mutation` from `x`, with density T(y | x) (or, for a
-/// planted fault, what the fault makes of it).
-struct Proposals<'a, M> {
-    mutation: &'a M,
-    x: &'a ChainPath<SceneVertex>,
-}
-
-impl<M: Mutation<SceneVertex>> Distribution for Proposals<'_, M> {
-    type Value = Proposal;
-    /// The uniforms seed the stream the mutation draws from, as many as
-    /// its code asks for.
-    fn dims(&self) -> usize {
-        4
-    }
-    fn sample(&self, u: &[f32]) -> Option<Sample<Proposal>> {
-        let bits = |i: usize| u64::from(u[i].to_bits());
-        let mut rng = Pcg32::new(bits(0) << 32 | bits(1), bits(2) << 32 | bits(3));
-        let (y, _) = propose(self.mutation, self.x, &mut rng)?;
-        // Only the histogram is checked: the density of a sample is not
-        // read, beyond its being continuous.
-        Some(Sample {
-            value: Proposal(y),
-            density: Density::new(1.0, Measure::Area),
-        })
-    }
-    fn density(&self, y: &Proposal) -> Density {
-        Density::new(
-            transition_density(self.mutation, self.x, &y.0).value(),
-            Measure::Area,
-        )
-    }
-    fn invert(&self, _: &Proposal) -> Option<Uniforms> {
-        None
-    }
-}
+use tests::proposal::{Proposal, Proposals, material, paths};
 
 /// Proposals that share every vertex of x but those `build` makes from the
 /// hit of a cone: the chart's points are `build(hit)`.
@@ -159,21 +110,6 @@ impl<B: Fn(SceneVertex) -> Option<ChainPath<SceneVertex>>> Parameterization<Prop
             j * f64::from(d.length_squared() / cos)
         })
     }
-}
-
-/// The room's paths that BDPT finds, and the sampler they came from.
-fn paths(scene: &Scene) -> Vec<ChainPath<SceneVertex>> {
-    let mlt = VeachMlt::new(scene, &MltSettings::default()).unwrap();
-    (0..4_000)
-        .flat_map(|i| mlt.seed_paths(&mut Pcg32::new(33, i)))
-        .collect()
-}
-
-fn material<'s>(scene: &'s Scene, v: &SceneVertex) -> Option<&'s Material> {
-    let Site::Surface { shape, .. } = v.site else {
-        return None;
-    };
-    Some(&scene.materials[scene.shapes[shape as usize].material])
 }
 
 fn config(samples: usize) -> Check {
