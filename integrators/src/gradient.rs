@@ -20,14 +20,13 @@
 //! pixels, so their difference estimates the gradient, and the mean over a
 //! pixel's neighbours estimates the pixel (the primal image).
 
-use std::cell::Cell;
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use aether_core::{
     DensityCache, DynStrategy, Heuristic, Pcg32, RandomSequence, StrategyRef, densities_of_split,
-    replay_jacobian, weight_of_shift,
+    weight_of_shift,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection};
@@ -47,6 +46,7 @@ use crate::poisson::{Norm, reconstruct};
 use crate::render::{PixelSamples, Rendered, Settings, Tile, render_tiles, repeat_passes};
 use crate::rounds::render_rounds;
 use crate::shard::Partial;
+use crate::shift::{Shift, Shifted, once};
 
 thread_local! {
     /// Density factors of one sample's base and offset paths: the offsets
@@ -96,22 +96,7 @@ pub struct GradientPathTracer<'s> {
     max_depth: usize,
     roulette: Roulette,
     heuristic: Heuristic,
-    threshold: f32,
-}
-
-/// The shift of the base path into one neighbour, as far as it has got.
-struct Offset<'a> {
-    path: RandomSequence<'a, SceneVertex>,
-    sub: Subpath<'a>,
-    importance: f64,
-    /// |∂ȳ/∂x̄| of the vertices replayed so far.
-    jacobian: f64,
-    /// Where the offset reconnected to the base path, which it copies from
-    /// there on.
-    joined_at: Option<usize>,
-    /// Its density over the base's under the same technique, once the
-    /// vertices that differ no longer condition the last ones.
-    ratio: Cell<Option<f64>>,
+    shift: Shift<'s>,
 }
 
 impl<'s> GradientPathTracer<'s> {
@@ -129,7 +114,7 @@ impl<'s> GradientPathTracer<'s> {
             max_depth: max_vertices.saturating_sub(1),
             roulette,
             heuristic: Heuristic::POWER,
-            threshold: scene.integrator.gradient.roughness_threshold,
+            shift: Shift::new(scene, scene.integrator.gradient.roughness_threshold),
         })
     }
 
@@ -174,103 +159,72 @@ impl<'s> GradientPathTracer<'s> {
         }
         let importance = f.importance(pixel, base.vertices());
         let mut eye = Subpath::of(f, End::Camera, base.vertices());
-        // Built in place: an offset is kilobytes of inline vertices, and
-        // moving four of them per sample showed up as memcpy in profiles.
-        let mut offsets: [Option<Offset<'_>>; 4] = [None, None, None, None];
-        for (d, slot) in offsets.iter_mut().enumerate() {
-            let Some(j) = neighbours[d] else { continue };
-            let o = slot.insert(Offset {
-                path: RandomSequence::new(),
-                sub: Subpath::new(f, End::Camera),
-                importance: 0.0,
-                jacobian: 0.0,
-                joined_at: None,
-                ratio: Cell::new(None),
-            });
-            let camera_ray = o
-                .path
-                .append(&lens)
-                .append_sample(&looks[1 + d], &mut start.clone());
-            if !camera_ray {
-                *slot = None;
-                continue;
-            }
-            o.sub.extend(o.path.vertices());
-            o.importance = f.importance(j, o.path.vertices());
-            o.jacobian = replay_jacobian(&base, &o.path, 0..2);
-        }
+        let mut offsets = self
+            .shift
+            .start(f, &lens, &looks[1..], &neighbours, &base, &start);
         // Adds one base path (technique `own`, value `fx`) and the offsets'
         // paths of the same length, with their values.
-        let mut contribute =
-            |own: usize,
-             fx: DVec3,
-             base: &RandomSequence<'_, SceneVertex>,
-             offsets: &[Option<(&Offset<'_>, DVec3, f64)>; 4]| {
-                let n = base.len();
-                let splits = techniques(n, &by_light);
-                let dx = DENSITIES.with_borrow_mut(|c| {
-                    densities_of_split(base, &cameras[0], &[], &splits, Some(c))
-                });
-                let px = dx[own].value();
-                // Long paths through near-specular surfaces can overflow f or
-                // p: such a path contributes nothing.
-                if !(px > 0.0 && px.is_finite() && fx.is_finite()) {
-                    return;
-                }
-                for d in 0..4 {
-                    let Some(_) = neighbours[d] else { continue };
-                    let (fy, w, jacobian) = match offsets[d] {
-                        Some((o, fy, jacobian))
-                            if fy.is_finite() && (fx != DVec3::ZERO || fy != DVec3::ZERO) =>
-                        {
-                            // Far enough past the reconnection, the offset's
-                            // densities are the base's times one ratio, which
-                            // the first such event measures.
-                            let settled = o.joined_at.is_some_and(|k| n >= k + 3 + own);
-                            let w = match o.ratio.get().filter(|_| settled) {
-                                Some(r) => weight_of_shift(
-                                    &dx,
-                                    Some((&dx, jacobian * r)),
-                                    own,
-                                    self.heuristic,
-                                ),
-                                None => {
-                                    let dy = DENSITIES.with_borrow_mut(|c| {
-                                        densities_of_split(
-                                            &o.path,
-                                            &cameras[1 + d],
-                                            &[],
-                                            &splits,
-                                            Some(c),
-                                        )
-                                    });
-                                    if settled {
-                                        o.ratio.set(Some(dx[own].ratio_to(dy[own])));
-                                    }
-                                    weight_of_shift(&dx, Some((&dy, jacobian)), own, self.heuristic)
+        let mut contribute = |own: usize,
+                              fx: DVec3,
+                              base: &RandomSequence<'_, SceneVertex>,
+                              offsets: &[Shifted<'_, '_>; 4]| {
+            let n = base.len();
+            let splits = techniques(n, &by_light);
+            let dx = DENSITIES
+                .with_borrow_mut(|c| densities_of_split(base, &cameras[0], &[], &splits, Some(c)));
+            let px = dx[own].value();
+            // Long paths through near-specular surfaces can overflow f or
+            // p: such a path contributes nothing.
+            if !(px > 0.0 && px.is_finite() && fx.is_finite()) {
+                return;
+            }
+            for d in 0..4 {
+                let Some(_) = neighbours[d] else { continue };
+                let (fy, w, jacobian) = match offsets[d] {
+                    Some((o, fy, jacobian))
+                        if fy.is_finite() && (fx != DVec3::ZERO || fy != DVec3::ZERO) =>
+                    {
+                        // Far enough past the reconnection, the offset's
+                        // densities are the base's times one ratio, which
+                        // the first such event measures.
+                        let settled = o.joined_at.is_some_and(|k| n >= k + 3 + own);
+                        let w = match o.ratio.get().filter(|_| settled) {
+                            Some(r) => {
+                                weight_of_shift(&dx, Some((&dx, jacobian * r)), own, self.heuristic)
+                            }
+                            None => {
+                                let dy = DENSITIES.with_borrow_mut(|c| {
+                                    densities_of_split(
+                                        &o.path,
+                                        &cameras[1 + d],
+                                        &[],
+                                        &splits,
+                                        Some(c),
+                                    )
+                                });
+                                if settled {
+                                    o.ratio.set(Some(dx[own].ratio_to(dy[own])));
                                 }
-                            };
-                            (fy, w, jacobian)
-                        }
-                        _ if fx != DVec3::ZERO => (
-                            DVec3::ZERO,
-                            weight_of_shift(&dx, None, own, self.heuristic),
-                            0.0,
-                        ),
-                        _ => continue,
-                    };
-                    out.base[d] += fx * (w / px);
-                    out.offset[d] += fy * (w * jacobian / px);
-                }
-            };
+                                weight_of_shift(&dx, Some((&dy, jacobian)), own, self.heuristic)
+                            }
+                        };
+                        (fy, w, jacobian)
+                    }
+                    _ if fx != DVec3::ZERO => (
+                        DVec3::ZERO,
+                        weight_of_shift(&dx, None, own, self.heuristic),
+                        0.0,
+                    ),
+                    _ => continue,
+                };
+                out.base[d] += fx * (w / px);
+                out.offset[d] += fy * (w * jacobian / px);
+            }
+        };
         loop {
             let n = base.len();
             if n >= 2 {
-                let shifted = offsets.each_ref().map(|o| {
-                    let o = o.as_ref().filter(|o| o.path.len() == n)?;
-                    Some((o, o.sub.emitted(n) * o.importance, o.jacobian))
-                });
-                contribute(0, eye.emitted(n) * importance, &base, &shifted);
+                contribute(0, eye.emitted(n) * importance, &base, &offsets.emitted(n));
             }
             if n <= self.max_depth && eye.connectible(n - 1) {
                 let replay = rng.clone();
@@ -278,47 +232,16 @@ impl<'s> GradientPathTracer<'s> {
                     let lamp = base.vertices()[n];
                     // The edge to the lamp is the base's for every offset
                     // that reconnected before it: one shadow ray for all.
-                    let clear = std::cell::OnceCell::new();
-                    let clear =
-                        || *clear.get_or_init(|| visible(scene, &base.vertices()[n - 1], &lamp));
+                    let clear = once(|| visible(scene, &base.vertices()[n - 1], &lamp));
                     let mut lit = eye.connect_lamp_unoccluded(n, &lamp);
                     if lit != DVec3::ZERO && !clear() {
                         lit = DVec3::ZERO;
                     }
-                    let mut jacobians = [0.0; 4];
-                    for (o, jacobian) in offsets.iter_mut().zip(&mut jacobians) {
-                        let Some(o) = o else { continue };
-                        *jacobian = if o.joined_at.is_some() {
-                            o.path.extend_from(&base, n..n + 1, false);
-                            o.jacobian
-                        } else if o.sub.connectible(n - 1)
-                            && o.path.append_sample(&direct, &mut replay.clone())
-                        {
-                            o.jacobian * replay_jacobian(&base, &o.path, n..n + 1)
-                        } else {
-                            0.0
-                        };
-                    }
-                    let shifted = std::array::from_fn(|d| {
-                        let o = offsets[d].as_ref().filter(|o| o.path.len() == n + 1)?;
-                        let fy = if o.joined_at.is_some() {
-                            let fy = o.sub.connect_lamp_unoccluded(n, &lamp);
-                            if fy != DVec3::ZERO && clear() {
-                                fy
-                            } else {
-                                DVec3::ZERO
-                            }
-                        } else {
-                            o.sub.connect_lamp(n, &o.path.vertices()[n])
-                        };
-                        Some((o, fy * o.importance, jacobians[d]))
-                    });
+                    let shifted = offsets.connect_lamp(&base, &direct, &replay, &clear);
                     contribute(1, lit * importance, &base, &shifted);
                 }
                 base.truncate(n);
-                for o in offsets.iter_mut().flatten() {
-                    o.path.truncate(n);
-                }
+                offsets.truncate(n);
             }
             if n > self.max_depth {
                 break;
@@ -328,58 +251,9 @@ impl<'s> GradientPathTracer<'s> {
                 break;
             }
             eye.push(base.vertices()[n]);
-            for o in &mut offsets {
-                if o.as_mut()
-                    .is_some_and(|o| !self.advance(o, &base, &eye, &bsdf, &replay))
-                {
-                    *o = None;
-                }
-            }
+            offsets.advance(&base, &eye, &bsdf, &replay);
         }
         out
-    }
-
-    /// Moves `offset` on to the base path's new last vertex x: copied if the
-    /// offset has reconnected; reconnected (if the edge to x is clear) when
-    /// x and the last vertices of both paths are rough; replayed from
-    /// `replay`'s uniforms otherwise. False if the shift fails.
-    ///
-    /// The shift must be its own inverse, so every decision is symmetric in
-    /// the two paths: where both last vertices are rough, x is specular and
-    /// the replayed vertex rough, the shift back would reconnect to that
-    /// vertex, and this one fails instead.
-    fn advance<'a>(
-        &self,
-        offset: &mut Offset<'a>,
-        base: &RandomSequence<'a, SceneVertex>,
-        eye: &Subpath<'_>,
-        bsdf: &'a BsdfSampling<'a>,
-        replay: &Pcg32,
-    ) -> bool {
-        let n = base.len() - 1;
-        let x = base.vertices()[n];
-        let rough = |s: &Subpath<'_>, i: usize| {
-            s.bsdf(i).is_some_and(|b| b.is_rougher_than(self.threshold))
-        };
-        let both_rough = rough(eye, n - 1) && rough(&offset.sub, n - 1);
-        if offset.joined_at.is_some() || (both_rough && rough(eye, n)) {
-            if offset.joined_at.is_none() && !visible(self.scene, &offset.sub.vertices()[n - 1], &x)
-            {
-                return false;
-            }
-            offset.path.extend_from(base, n..n + 1, false);
-            offset.sub.push(x);
-            offset.joined_at.get_or_insert(n);
-            return true;
-        }
-        if !offset.path.append_sample(bsdf, &mut replay.clone()) {
-            return false;
-        }
-        offset.jacobian *= replay_jacobian(base, &offset.path, n..n + 1);
-        offset.sub.push(offset.path.vertices()[n]);
-        !(both_rough && rough(&offset.sub, n))
-            && offset.jacobian.is_finite()
-            && offset.jacobian > 0.0
     }
 }
 

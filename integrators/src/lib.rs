@@ -34,6 +34,7 @@ pub mod render;
 pub mod rounds;
 pub mod shard;
 pub mod shard_file;
+mod shift;
 pub mod techniques;
 
 pub use aether_strategies as strategies;

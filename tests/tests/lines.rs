@@ -2,8 +2,9 @@
 //! (non-blank, non-comment lines in the bodies of its functions), and
 //! checks them against their budgets: strategies under 40, and the logic of
 //! the integrators (sampling, MIS, estimate; not the render loop) at most
-//! direct 35, path 50, BDPT 80 and tridirectional BDPT + 20; and each
-//! Metropolis mutation under 40.
+//! direct 35, path 50, BDPT 80, tridirectional BDPT + 20, gradient-domain
+//! tracing's estimator 120 and its shift 90; and each Metropolis mutation
+//! under 40.
 
 use std::path::Path;
 
@@ -136,12 +137,33 @@ fn each_integrator_stays_within_its_budget() {
             ("impl<'s> Bdpt<'s>", "weight"),
         ],
     ) - tridir_lines;
+    // Gradient-domain tracing: its estimator (the base path, its MIS
+    // weights against the shifted paths, the pairs' sums), and the shift it
+    // uses (replay, reconnection, the offsets' direct lighting).
+    let gpt_lines = function_lines(
+        &read("gradient.rs"),
+        "impl<'s> GradientPathTracer<'s>",
+        "sample",
+    );
+    let shift = read("shift.rs");
+    let shift_lines = count(
+        &shift,
+        &[
+            ("impl<'s> Shift<'s>", "start"),
+            ("impl<'a> Offsets<'a>", "emitted"),
+            ("impl<'a> Offsets<'a>", "connect_lamp"),
+            ("impl<'a> Offsets<'a>", "advance"),
+            ("fn once", "advance"),
+        ],
+    );
     let rows = [
         ("direct", direct_lines, 35),
         ("path", path_lines, 50),
         ("light", light_lines, 50),
         ("BDPT", bdpt_lines, 80),
         ("tridirectional, beyond BDPT", tridir_lines, 20),
+        ("gradient-domain estimator", gpt_lines, 120),
+        ("gradient-domain shift", shift_lines, 90),
     ];
     for (name, lines, budget) in rows {
         println!("{name:>28}: {lines:>3} lines (budget {budget})");
@@ -151,6 +173,8 @@ fn each_integrator_stays_within_its_budget() {
     assert!(tridir_lines <= 20, "the portal adds {tridir_lines} lines");
     assert!(light_lines <= 50, "light has {light_lines} lines");
     assert!(bdpt_lines <= 80, "BDPT has {bdpt_lines} lines");
+    assert!(gpt_lines <= 120, "GPT's estimator has {gpt_lines} lines");
+    assert!(shift_lines <= 90, "GPT's shift has {shift_lines} lines");
 }
 
 /// Each of Veach's mutations reads as its algorithm: at most 40 lines of
