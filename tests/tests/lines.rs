@@ -3,8 +3,9 @@
 //! checks them against their budgets: strategies under 40, and the logic of
 //! the integrators (sampling, MIS, estimate; not the render loop) at most
 //! direct 35, path 50, BDPT 80, tridirectional BDPT + 20, gradient-domain
-//! tracing's estimator 120 and its shift 90; and each Metropolis mutation
-//! under 40.
+//! tracing's estimator 120 and its shift 90; each Metropolis mutation
+//! under 40, and each Metropolis method's sampler (PSSMLT 40, multiplexed
+//! MLT 60, Veach's MLT 80 beyond its mutations).
 
 use std::path::Path;
 
@@ -199,5 +200,65 @@ fn each_metropolis_mutation_is_under_forty_lines() {
     }
     for (name, lines) in rows {
         assert!(lines <= 40, "the {name} mutation has {lines} lines");
+    }
+}
+
+/// Each Metropolis method's sampler reads as its algorithm: what it
+/// evaluates, how it starts a chain and how it proposes and accepts
+/// (Veach's mutations are budgeted above; the chains' loop, shared by all
+/// three, is the render loop and not counted).
+#[test]
+fn each_metropolis_method_stays_within_its_budget() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../integrators/src/mlt");
+    let read = |f: &str| std::fs::read_to_string(src.join(f)).unwrap();
+    let (primary, veach) = (read("primary.rs"), read("veach.rs"));
+    let count = |source: &str, parts: &[(&str, &str)]| -> usize {
+        parts
+            .iter()
+            .map(|(after, f)| function_lines(source, after, f))
+            .sum()
+    };
+    let sampler = |name: &str| {
+        [
+            (format!("impl<'s> {name}<'s>"), "evaluate"),
+            (format!("impl Sampler for {name}<'_>"), "bootstrap"),
+            (format!("impl Sampler for {name}<'_>"), "start"),
+            (format!("impl Sampler for {name}<'_>"), "mutate"),
+        ]
+    };
+    let lines = |source: &str, parts: &[(String, &str)]| {
+        let parts: Vec<(&str, &str)> = parts.iter().map(|(a, f)| (a.as_str(), *f)).collect();
+        count(source, &parts)
+    };
+    // Both primary-sample-space methods share the small step.
+    let step = function_lines(&primary, "fn draw", "step");
+    let veach_parts = [
+        ("impl<'s> VeachMlt<'s>", "evaluate"),
+        ("impl<'s> VeachMlt<'s>", "seed_weight"),
+        ("impl Sampler for VeachMlt<'_>", "bootstrap"),
+        ("impl Sampler for VeachMlt<'_>", "start"),
+        ("impl Sampler for VeachMlt<'_>", "mutate"),
+    ];
+    let rows = [
+        ("PSSMLT", lines(&primary, &sampler("Pssmlt")) + step, 40),
+        (
+            "multiplexed MLT",
+            lines(&primary, &sampler("Mmlt")) + step,
+            60,
+        ),
+        (
+            "Veach's MLT, beyond its mutations",
+            count(&veach, &veach_parts),
+            80,
+        ),
+    ];
+    for (name, lines, budget) in rows {
+        println!("{name:>34}: {lines:>3} lines (budget {budget})");
+    }
+    for (name, lines, budget) in rows {
+        assert!(
+            lines <= budget,
+            "{name} has {lines} lines (budget {budget})"
+        );
     }
 }
