@@ -38,9 +38,11 @@ fn the_quick_report_holds_every_example() {
                 let bytes = std::fs::metadata(&png).map_or(0, |m| m.len());
                 assert!(
                     r.finite && r.lit && bytes > 0,
-                    "{} with {}",
+                    "{} with {}: finite {}, lit {}, {bytes} bytes",
                     row.scene,
-                    row.integrator
+                    row.integrator,
+                    r.finite,
+                    r.lit
                 );
                 assert!(html.contains(&r.png), "{} is not on the page", r.png);
             }
