@@ -19,7 +19,7 @@ use aether_strategies::portal::PortalSegment;
 use aether_strategies::scene::Scene;
 use aether_strategies::vertex::{SceneVertex, Site};
 use glam::Vec3;
-use support::room;
+use support::portal_room;
 
 type Pair = Step<(SceneVertex, SceneVertex)>;
 
@@ -121,11 +121,7 @@ impl Parameterization4<Pair> for Lines<'_> {
 
 #[test]
 fn the_portal_segment_passes_the_chi_square_test() {
-    let scene = room(
-        "<shape type=\"rectangle\"><transform name=\"toWorld\"><scale x=\"0.2\" y=\"0.1\"/>
-            <rotate x=\"1\" angle=\"30\"/><translate x=\"0.1\"/></transform>
-            <boolean name=\"portal\" value=\"true\"/></shape>",
-    );
+    let scene = portal_room();
     let segment = PortalSegment::new(&scene, 0).unwrap();
     let chart = Grid4::new(Lines::new(&scene, 0), 6);
     let config = Check {
@@ -180,11 +176,7 @@ impl<D: aether_core::Distribution<Value = Pair>> aether_core::Distribution for M
 
 #[test]
 fn a_segment_without_the_cosine_at_the_opening_fails_the_chi_square_test() {
-    let scene = room(
-        "<shape type=\"rectangle\"><transform name=\"toWorld\"><scale x=\"0.2\" y=\"0.1\"/>
-            <rotate x=\"1\" angle=\"30\"/><translate x=\"0.1\"/></transform>
-            <boolean name=\"portal\" value=\"true\"/></shape>",
-    );
+    let scene = portal_room();
     let segment = PortalSegment::new(&scene, 0).unwrap();
     let chart = Grid4::new(Lines::new(&scene, 0), 6);
     let config = Check {

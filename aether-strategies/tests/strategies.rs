@@ -20,7 +20,7 @@ use aether_strategies::portal::PortalSegment;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::vertex::SceneVertex;
 use glam::Vec3;
-use support::{SceneChart, hit, room};
+use support::{SceneChart, hit, portal_room, room};
 
 /// The chi-square tests of this file (about sixty) share a 1 % budget of
 /// false failures (Bonferroni).
@@ -372,11 +372,7 @@ fn light_strategies_pass_the_harness_for_every_light() {
 
 #[test]
 fn the_portal_segment_passes_the_pointwise_checks() {
-    let scene = room(
-        "<shape type=\"rectangle\"><transform name=\"toWorld\"><scale x=\"0.2\" y=\"0.1\"/>
-            <rotate x=\"1\" angle=\"30\"/><translate x=\"0.1\"/></transform>
-            <boolean name=\"portal\" value=\"true\"/></shape>",
-    );
+    let scene = portal_room();
     let segment = PortalSegment::new(&scene, 0).unwrap();
     let report = check_pointwise(&segment.distribution(Prefix::forward(&[])), &config())
         .unwrap_or_else(|f| panic!("portal segment: {f}"));

@@ -48,6 +48,15 @@ pub fn room(extra: &str) -> Scene {
     ))
 }
 
+/// The room with a 0.4 × 0.2 portal rectangle tilted by 30° in its middle.
+pub fn portal_room() -> Scene {
+    room(
+        "<shape type=\"rectangle\"><transform name=\"toWorld\"><scale x=\"0.2\" y=\"0.1\"/>
+            <rotate x=\"1\" angle=\"30\"/><translate x=\"0.1\"/></transform>
+            <boolean name=\"portal\" value=\"true\"/></shape>",
+    )
+}
+
 /// A grey 8×8 checkerboard PNG for textures and bump maps.
 pub fn checkerboard() -> PathBuf {
     let path = folder().join("checker.png");
