@@ -103,8 +103,8 @@ impl<'s> Shift<'s> {
 }
 
 impl<'a> Offsets<'a> {
-    /// The offsets of `n` vertices that end on an emitter, with what they
-    /// emit toward the camera.
+    /// The offsets of `n` vertices, with what their last vertex emits
+    /// toward the camera.
     pub(crate) fn emitted(&self, n: usize) -> [Shifted<'_, 'a>; 4] {
         self.all.each_ref().map(|o| {
             let o = o.as_ref().filter(|o| o.path.len() == n)?;

@@ -35,7 +35,6 @@ pub struct State {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Pixels {
     origin: [u32; 2],
-    size: [u32; 2],
     cells: UniformCells,
 }
 
@@ -45,7 +44,6 @@ impl Pixels {
         let [cx, cy, cw, ch] = scene.film.crop;
         Pixels {
             origin: [cx, cy],
-            size: [cw.max(1), ch.max(1)],
             cells: UniformCells::new(cw, ch),
         }
     }
@@ -53,17 +51,20 @@ impl Pixels {
     /// The pixel the next two uniforms of `u` pick, and its probability.
     pub(super) fn pick(&self, u: &mut dyn UniformSource) -> ([u32; 2], f64) {
         let s = draw(&self.cells, u);
-        let [x, y] = self.cells.cell(s.value);
-        ([self.origin[0] + x, self.origin[1] + y], s.density.value())
+        (self.pixel(s.value), s.density.value())
     }
 
-    /// Pixel `stratum` mod their number, in rows, and its probability
-    /// (each pixel's, for a stratum that is equally likely any of them).
-    pub(super) fn stratum(&self, stratum: u64) -> ([u32; 2], f64) {
-        let [w, h] = self.size;
-        let k = stratum % (u64::from(w) * u64::from(h));
-        let (x, y) = ((k % u64::from(w)) as u32, (k / u64::from(w)) as u32);
-        ([self.origin[0] + x, self.origin[1] + y], self.probability())
+    /// Pixel `stratum` mod their number, in rows: each pixel with
+    /// [`probability`](Self::probability), for a stratum that is equally
+    /// likely any of them.
+    pub(super) fn stratum(&self, stratum: u64) -> [u32; 2] {
+        self.pixel((stratum % self.cells.len() as u64) as usize)
+    }
+
+    /// The pixel of cell `index` of the crop window.
+    fn pixel(&self, index: usize) -> [u32; 2] {
+        let [x, y] = self.cells.cell(index);
+        [self.origin[0] + x, self.origin[1] + y]
     }
 
     /// The probability of each pixel.

@@ -90,6 +90,8 @@ pub struct VeachMlt<'s> {
     bdpt: Bdpt<'s>,
     settings: MutationSettings,
     specular: Specular,
+    /// The pixels bootstrap samples are taken at.
+    pixels: Pixels,
     /// Paths of at most this many vertices are rendered by a separate
     /// direct-lighting pass (0: none).
     direct_vertices: usize,
@@ -115,6 +117,7 @@ impl<'s> VeachMlt<'s> {
         settings.roughness_threshold = scene.integrator.gradient.roughness_threshold;
         Ok(VeachMlt {
             specular: Specular::of(scene, settings.roughness_threshold),
+            pixels: Pixels::of(scene),
             scene,
             camera: Camera::new(scene)?,
             lights,
@@ -212,7 +215,7 @@ impl<'s> VeachMlt<'s> {
         let picked = if seed.splat {
             1.0
         } else {
-            Pixels::of(self.scene).probability()
+            self.pixels.probability()
         };
         let y = luminance(seed.weighted.as_vec3().to_array()) / picked;
         if y.is_finite() && y > 0.0 { y } else { 0.0 }
@@ -226,10 +229,9 @@ impl<'s> VeachMlt<'s> {
         stream: &mut Pcg32,
         use_seeds: impl FnOnce(&[SeedPath]) -> T,
     ) -> T {
-        let pixels = Pixels::of(self.scene);
-        let (pixel, _) = match stratum {
-            Some(k) => pixels.stratum(k),
-            None => pixels.pick(stream),
+        let pixel = match stratum {
+            Some(k) => self.pixels.stratum(k),
+            None => self.pixels.pick(stream).0,
         };
         SEEDS.with_borrow_mut(|(seeds, splats)| {
             seeds.clear();
@@ -272,23 +274,22 @@ impl Sampler for VeachMlt<'_> {
         // the chain count how each fares; T is still the mixture's.
         let weights = mutations.weights(current.path.vertices());
         let target = f64::from(rng.next_f32()) * weights.iter().sum::<f64>();
-        // Where no mutation applies (one alone, for a path it does not
-        // fit), the chain stays, and no mutation is charged with it.
-        let Some(k) = pick(weights, target) else {
+        let kind = pick(weights, target).map(|k| Kind::ALL[k]);
+        let proposed = kind.and_then(|kind| {
+            let only = Only {
+                mutations: &mutations,
+                kind,
+            };
+            propose(&only, &current.path, rng)
+        });
+        let (Some(kind), Some((y, _))) = (kind, proposed) else {
             proposal.contributions.clear();
             proposal.f = 0.0;
-            return 0.0;
-        };
-        let kind = Kind::ALL[k];
-        let only = Only {
-            mutations: &mutations,
-            kind,
-        };
-        let proposed = propose(&only, &current.path, rng);
-        let Some((y, _)) = proposed else {
-            proposal.contributions.clear();
-            proposal.f = 0.0;
-            self.statistics.record(kind, false, 0.0);
+            // Where no mutation applies (one alone, for a path it does not
+            // fit), the chain stays, and no mutation is charged with it.
+            if let Some(kind) = kind {
+                self.statistics.record(kind, false, 0.0);
+            }
             return 0.0;
         };
         proposal.path = y;
