@@ -13,7 +13,7 @@ mod support;
 
 use std::f64::consts::PI;
 
-use aether_core::harness::{Check, Grid4, Parameterization4, check_histogram};
+use aether_core::harness::{Check, Grid4, Misreported, Parameterization4, check_histogram};
 use aether_core::{Frame, PairStrategy, Prefix, RayCaster, Step};
 use aether_strategies::portal::PortalSegment;
 use aether_strategies::scene::Scene;
@@ -145,35 +145,6 @@ fn the_portal_segment_passes_the_chi_square_test() {
     }
 }
 
-/// The segment's distribution with its density misreported by a factor of
-/// the line's direction: a planted fault.
-struct Misreported<D> {
-    d: D,
-    normal: Vec3,
-}
-
-impl<D: aether_core::Distribution<Value = Pair>> aether_core::Distribution for Misreported<D> {
-    type Value = Pair;
-    fn dims(&self) -> usize {
-        self.d.dims()
-    }
-    fn sample(&self, u: &[f32]) -> Option<aether_core::Sample<Pair>> {
-        self.d.sample(u)
-    }
-    fn density(&self, value: &Pair) -> aether_core::Density {
-        let p = self.d.density(value);
-        let Step::Vertex((a, b)) = value else {
-            return p;
-        };
-        // |cos θ_y| left out of the line measure.
-        let w = (b.position - a.position).normalize();
-        p.scale(1.0 / f64::from(w.dot(self.normal).abs()))
-    }
-    fn invert(&self, value: &Pair) -> Option<aether_core::Uniforms> {
-        self.d.invert(value)
-    }
-}
-
 #[test]
 fn a_segment_without_the_cosine_at_the_opening_fails_the_chi_square_test() {
     let scene = portal_room();
@@ -183,9 +154,16 @@ fn a_segment_without_the_cosine_at_the_opening_fails_the_chi_square_test() {
         samples: 200_000,
         ..Check::default()
     };
+    let normal = Lines::new(&scene, 0).normal;
+    // |cos θ_y| left out of the line measure.
     let wrong = Misreported {
-        d: segment.distribution(Prefix::forward(&[])),
-        normal: Lines::new(&scene, 0).normal,
+        distribution: segment.distribution(Prefix::forward(&[])),
+        factor: |value: &Pair| match value {
+            Step::Vertex((a, b)) => {
+                1.0 / f64::from((b.position - a.position).normalize().dot(normal).abs())
+            }
+            _ => 1.0,
+        },
     };
     let failure = check_histogram(&wrong, &chart, &config).expect_err("a wrong density");
     println!("planted: {failure}");

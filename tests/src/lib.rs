@@ -391,7 +391,7 @@ pub fn lines_between(source: &str, start: &str, end: &str) -> usize {
 }
 
 /// A caustic room: a smooth glass sphere over the diffuse floor of a closed
-/// room under a small spherical light, and a smooth mirror sphere beside it
+/// room under a point light, and a smooth mirror sphere beside it
 /// that the camera sees the floor in. Light reaches the floor through the
 /// glass (L S S D E paths: the caustic perturbation's) and the camera sees
 /// that caustic in the mirror (E S D S S L: the multi-chain

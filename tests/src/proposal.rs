@@ -6,8 +6,10 @@ use aether_core::{
     ChainPath, Coords, Density, Distribution, Embed, Measure, Mutation, Pcg32, Sample, Uniforms,
     propose, transition_density,
 };
+use aether_strategies::bsdf::Bsdf;
+use aether_strategies::mutations::Kind;
 use aether_strategies::scene::{Material, Scene};
-use aether_strategies::vertex::{SceneVertex, Site};
+use aether_strategies::vertex::SceneVertex;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
 
@@ -62,23 +64,44 @@ impl<M: Mutation<SceneVertex>> Distribution for Proposals<'_, M> {
     }
 }
 
-/// The paths of `scene` that 4,000 BDPT samples find.
-///
-/// # Panics
-/// If Veach's MLT cannot be set up for the scene.
-#[must_use]
-pub fn paths(scene: &Scene) -> Vec<ChainPath<SceneVertex>> {
-    let mlt = VeachMlt::new(scene, &MltSettings::default()).unwrap();
-    (0..4_000)
-        .flat_map(|i| mlt.seed_paths(&mut Pcg32::new(33, i)))
-        .collect()
+/// What a vertex between the camera and the light of a path lies on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum On {
+    /// A diffuse surface.
+    Diffuse,
+    /// A smooth conductor.
+    Mirror,
 }
 
-/// The material of the surface `v` lies on.
+impl On {
+    /// True if `v` lies on such a surface of `scene`.
+    #[must_use]
+    pub fn holds(self, scene: &Scene, v: &SceneVertex) -> bool {
+        match Bsdf::at(scene, v).map(|b| b.material()) {
+            Some(Material::Diffuse { .. }) => self == On::Diffuse,
+            Some(Material::Conductor { .. }) => self == On::Mirror,
+            _ => false,
+        }
+    }
+}
+
+/// The first path of `scene` (of those 4,000 BDPT samples find) that runs
+/// camera, vertices on `middle` in order, light, and that the mutation
+/// `kind` applies to.
+///
+/// # Panics
+/// If there is none, or Veach's MLT cannot be set up for the scene.
 #[must_use]
-pub fn material<'s>(scene: &'s Scene, v: &SceneVertex) -> Option<&'s Material> {
-    let Site::Surface { shape, .. } = v.site else {
-        return None;
-    };
-    Some(&scene.materials[scene.shapes[shape as usize].material])
+pub fn path_over(scene: &Scene, middle: &[On], kind: Kind) -> ChainPath<SceneVertex> {
+    let mlt = VeachMlt::new(scene, &MltSettings::default()).unwrap();
+    let mutations = mlt.mutations();
+    (0..4_000)
+        .flat_map(|i| mlt.seed_paths(&mut Pcg32::new(33, i)))
+        .find(|p| {
+            let v = p.vertices();
+            v.len() == middle.len() + 2
+                && middle.iter().zip(&v[1..]).all(|(on, v)| on.holds(scene, v))
+                && mutations.weights(v)[kind as usize] > 0.0
+        })
+        .unwrap_or_else(|| panic!("no path camera, {middle:?}, light that {kind:?} applies to"))
 }

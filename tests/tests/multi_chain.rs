@@ -23,14 +23,14 @@ use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::mutations::{Kind, MutationSettings};
 use aether_strategies::scattering::{BsdfSampling, Roulette};
-use aether_strategies::scene::{Material, Scene};
+use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
 use glam::Vec2;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
 use tests::caustic_room;
 use tests::cone::{Angles, Cone};
-use tests::proposal::{Proposal, Proposals, material, paths};
+use tests::proposal::{On, Proposal, Proposals, path_over};
 
 /// Proposals that move vertices 1, 2 and 3 of x: 1 seen from the camera
 /// through a film point offset from x's, 2 seen from 1 about x's edge
@@ -98,10 +98,7 @@ impl Parameterization4<Proposal> for Chain<'_> {
         let (first, film_jacobian) = self.first([s[0], s[1]])?;
         let turn = self.turn(first);
         let mirror = turn.hit([s[2], s[3]])?;
-        if !matches!(
-            material(self.scene, &mirror),
-            Some(Material::Conductor { .. })
-        ) {
+        if !On::Mirror.holds(self.scene, &mirror) {
             return None;
         }
         let prefix = [first, mirror];
@@ -151,29 +148,11 @@ fn multi_chain_proposals_follow_the_transition_density() {
     let mlt = VeachMlt::new(&scene, &MltSettings::default()).unwrap();
     let mutations = mlt.mutations();
     let camera = Camera::new(&scene).unwrap();
-    let index = Kind::ALL
-        .iter()
-        .position(|&k| k == Kind::MultiChain)
-        .unwrap();
-    let x = paths(&scene)
-        .into_iter()
-        .find(|p| {
-            let v = p.vertices();
-            let is = |i: usize, conductor: bool| {
-                let m = material(&scene, &v[i]);
-                if conductor {
-                    matches!(m, Some(Material::Conductor { .. }))
-                } else {
-                    matches!(m, Some(Material::Diffuse { .. }))
-                }
-            };
-            p.len() == 5
-                && is(1, false)
-                && is(2, true)
-                && is(3, false)
-                && mutations.weights(v)[index] > 0.0
-        })
-        .expect("a path camera, floor, mirror, wall, light");
+    let x = path_over(
+        &scene,
+        &[On::Diffuse, On::Mirror, On::Diffuse],
+        Kind::MultiChain,
+    );
     let v = x.vertices();
     let settings = MutationSettings::new(scene.film.width, scene.film.height, 8);
     let (r_min, r_max) = settings.lens_offsets;

@@ -30,23 +30,23 @@
 //! f(y) T(x|y) a(y→x) exactly, which is why that equality proves nothing
 //! about T.
 
-use aether_core::harness::{Check, Grid, Parameterization, check_histogram};
+use aether_core::harness::{Chart, Check, Grid, Misreported, Parameterization, check_histogram};
 use aether_core::primitives::ExponentialDisk;
 use aether_core::{
-    ChainPath, Density, Distribution, Mutation, Mutator, Pcg32, Prefix, Sample, Step, Strategy,
-    Uniforms, acceptance, propose, transition_density,
+    ChainPath, Distribution, Mutation, Mutator, Pcg32, Prefix, Step, Strategy, acceptance, propose,
+    transition_density,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, PerturbedFilm};
-use aether_strategies::mutations::MutationSettings;
+use aether_strategies::mutations::{Kind, MutationSettings};
 use aether_strategies::scattering::{BsdfSampling, Roulette};
-use aether_strategies::scene::{Material, Scene};
+use aether_strategies::scene::Scene;
 use aether_strategies::vertex::SceneVertex;
 use integrators::mlt::MltSettings;
 use integrators::mlt::veach::VeachMlt;
 use tests::caustic_room;
 use tests::cone::{Angles, Cone};
-use tests::proposal::{Proposal, Proposals, material, paths};
+use tests::proposal::{On, Proposal, Proposals, path_over};
 
 /// Proposals that share every vertex of x but those `build` makes from the
 /// hit of a cone: the chart's points are `build(hit)`.
@@ -164,26 +164,13 @@ fn report(name: &str, r: Result<aether_core::harness::Report, impl std::fmt::Dis
     }
 }
 
-fn diffuse_first(scene: &Scene, all: &[ChainPath<SceneVertex>]) -> ChainPath<SceneVertex> {
-    all.iter()
-        .find(|p| {
-            p.len() == 3
-                && matches!(
-                    material(scene, &p.vertices()[1]),
-                    Some(Material::Diffuse { .. })
-                )
-        })
-        .expect("a path camera, diffuse, light")
-        .clone()
-}
-
 #[test]
 fn proposals_that_move_the_first_hit_follow_the_transition_density() {
     let scene = caustic_room(16, 12, 6);
     let mlt = VeachMlt::new(&scene, &MltSettings::default()).unwrap();
     let mutations = mlt.mutations();
     let camera = Camera::new(&scene).unwrap();
-    let x = diffuse_first(&scene, &paths(&scene));
+    let x = path_over(&scene, &[On::Diffuse], Kind::Lens);
     let chart = first_hit_chart(&scene, &camera, &x);
     report(
         "first hit moved",
@@ -196,25 +183,14 @@ fn proposals_through_the_mirror_follow_the_transition_density() {
     let scene = caustic_room(16, 12, 6);
     let mlt = VeachMlt::new(&scene, &MltSettings::default()).unwrap();
     let mutations = mlt.mutations();
-    let all = paths(&scene);
-    let x = all
-        .iter()
-        .find(|p| {
-            let v = p.vertices();
-            p.len() == 4
-                && matches!(material(&scene, &v[1]), Some(Material::Diffuse { .. }))
-                && matches!(material(&scene, &v[2]), Some(Material::Conductor { .. }))
-                && mutations.weights(v)[2] > 0.0
-        })
-        .expect("a path camera, floor, mirror, light")
-        .clone();
+    let x = path_over(&scene, &[On::Diffuse, On::Mirror], Kind::Caustic);
     let v = x.vertices();
     // The mirror's reflection from the light, followed by the mutations'
     // own light-side BSDF sampling (a Dirac lobe: any uniforms).
     let reflect = BsdfSampling::new(&scene, Transport::Importance, Roulette::NEVER);
     let light = v[3];
     let build = |hit: SceneVertex| {
-        if !matches!(material(&scene, &hit), Some(Material::Conductor { .. })) {
+        if !On::Mirror.holds(&scene, &hit) {
             return None;
         }
         let prefix = [light, hit];
@@ -247,55 +223,26 @@ fn proposals_through_the_mirror_follow_the_transition_density() {
 
 /// A strategy whose density is `factor(prefix's last, value)` times what it
 /// says: a planted fault.
-struct Misreported<S, F> {
+struct Misreporting<S, F> {
     strategy: S,
     factor: F,
 }
 
-struct MisreportedDistribution<D, F> {
-    d: D,
-    from: SceneVertex,
-    factor: F,
-}
-
-impl<D: Distribution<Value = Step<SceneVertex>>, F: Fn(&SceneVertex, &SceneVertex) -> f64>
-    Distribution for MisreportedDistribution<D, F>
-{
-    type Value = Step<SceneVertex>;
-    fn dims(&self) -> usize {
-        self.d.dims()
-    }
-    fn sample(&self, u: &[f32]) -> Option<Sample<Step<SceneVertex>>> {
-        let s = self.d.sample(u)?;
-        let density = self.density(&s.value);
-        Some(Sample {
-            value: s.value,
-            density,
-        })
-    }
-    fn density(&self, value: &Step<SceneVertex>) -> Density {
-        let p = self.d.density(value);
-        match value {
-            Step::Vertex(v) => p.scale((self.factor)(&self.from, v)),
-            _ => p,
-        }
-    }
-    fn invert(&self, value: &Step<SceneVertex>) -> Option<Uniforms> {
-        self.d.invert(value)
-    }
-}
-
 impl<S: Strategy<SceneVertex>, F: Fn(&SceneVertex, &SceneVertex) -> f64 + Copy>
-    Strategy<SceneVertex> for Misreported<S, F>
+    Strategy<SceneVertex> for Misreporting<S, F>
 {
     fn distribution<'a>(
         &'a self,
         prefix: Prefix<'a, SceneVertex>,
     ) -> impl Distribution<Value = Step<SceneVertex>> + 'a {
-        MisreportedDistribution {
-            from: *prefix.last().expect("a vertex to leave from"),
-            d: self.strategy.distribution(prefix),
-            factor: self.factor,
+        let from = *prefix.last().expect("a vertex to leave from");
+        let factor = self.factor;
+        Misreported {
+            distribution: self.strategy.distribution(prefix),
+            factor: move |step: &Step<SceneVertex>| match step {
+                Step::Vertex(v) => factor(&from, v),
+                _ => 1.0,
+            },
         }
     }
 }
@@ -322,7 +269,7 @@ impl<F: Fn(&SceneVertex, &SceneVertex) -> f64 + Copy> Mutation<SceneVertex> for 
                 center,
                 ExponentialDisk::new(0.1, 1.75),
             );
-            let planted = Misreported {
+            let planted = Misreporting {
                 strategy: film,
                 factor: self.factor,
             };
@@ -342,7 +289,7 @@ fn planted_faults_in_a_transition_density_fail_the_test_but_not_detailed_balance
     let scene = caustic_room(16, 12, 6);
     let mlt = VeachMlt::new(&scene, &MltSettings::default()).unwrap();
     let camera = Camera::new(&scene).unwrap();
-    let x = diffuse_first(&scene, &paths(&scene));
+    let x = path_over(&scene, &[On::Diffuse], Kind::Lens);
     let chart = first_hit_chart(&scene, &camera, &x);
     let doubled = |_: &SceneVertex, _: &SceneVertex| 2.0;
     // Area → solid angle: what a density loses without r² / |cos θ|.
@@ -361,30 +308,46 @@ fn planted_faults_in_a_transition_density_fail_the_test_but_not_detailed_balance
         "planted lens, no fault",
         histogram(&honest, &x, &chart, 200_000),
     );
-    let planted: [(&str, &dyn Fn(usize) -> _); 2] = [
-        ("the lens branch's density doubled", &|n| {
-            let m = PlantedLens {
-                scene: &scene,
-                camera: &camera,
-                factor: doubled,
-            };
-            (histogram(&m, &x, &chart, n).is_err(), balance(&mlt, &m, &x))
-        }),
-        ("the film strategy's Jacobian dropped", &|n| {
-            let m = PlantedLens {
-                scene: &scene,
-                camera: &camera,
-                factor: no_jacobian,
-            };
-            (histogram(&m, &x, &chart, n).is_err(), balance(&mlt, &m, &x))
-        }),
-    ];
-    for (name, run) in planted {
-        let (caught, worst) = run(200_000);
-        println!("{name}: caught {caught}; detailed balance holds to {worst:.1e}");
-        assert!(caught, "{name}: the chi-square test passed a wrong T");
-        assert!(worst < 1e-9, "{name}: detailed balance {worst}");
-    }
+    let doubled = PlantedLens {
+        scene: &scene,
+        camera: &camera,
+        factor: doubled,
+    };
+    caught(
+        "the lens branch's density doubled",
+        &doubled,
+        &mlt,
+        &x,
+        &chart,
+    );
+    let no_jacobian = PlantedLens {
+        scene: &scene,
+        camera: &camera,
+        factor: no_jacobian,
+    };
+    caught(
+        "the film strategy's Jacobian dropped",
+        &no_jacobian,
+        &mlt,
+        &x,
+        &chart,
+    );
+}
+
+/// The chi-square test fails `mutation`, whose T is wrong, while detailed
+/// balance holds for it.
+fn caught<M: Mutation<SceneVertex>>(
+    name: &str,
+    mutation: &M,
+    mlt: &VeachMlt<'_>,
+    x: &ChainPath<SceneVertex>,
+    chart: &impl Chart<Proposal>,
+) {
+    let caught = histogram(mutation, x, chart, 200_000).is_err();
+    let worst = balance(mlt, mutation, x);
+    println!("{name}: caught {caught}; detailed balance holds to {worst:.1e}");
+    assert!(caught, "{name}: the chi-square test passed a wrong T");
+    assert!(worst < 1e-9, "{name}: detailed balance {worst}");
 }
 
 /// The largest relative error of f(x) T(y|x) a(x→y) = f(y) T(x|y) a(y→x)

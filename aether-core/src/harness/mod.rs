@@ -39,6 +39,7 @@ mod chart4;
 mod chi2;
 mod jacobian;
 mod mis;
+mod planted;
 mod stats;
 
 use std::fmt;
@@ -48,6 +49,7 @@ pub use chart::{
 };
 pub use chart4::{Grid4, Parameterization4};
 pub use mis::{MisReport, Technique, check_mis};
+pub use planted::Misreported;
 pub use stats::chi_square_p_value;
 
 pub use crate::sequence::density_evaluations;
