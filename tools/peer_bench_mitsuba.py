@@ -22,11 +22,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from mitsuba_compare import rewrite  # noqa: E402
 
 
-def main():
-    if len(sys.argv) not in (5, 6):
-        sys.exit(__doc__)
-    variant, scene, spp, depth = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-    width = int(sys.argv[5]) if len(sys.argv) == 6 else 512
+def load(variant, scene, spp, depth, width):
+    """Mitsuba 3 (as `variant`) and the scene rewritten for its `path`
+    integrator at `max_depth` DEPTH; returns (mi, dr, loaded, (w, h)).
+    Exits with status 2, saying why, if the variant cannot be used."""
     try:
         import drjit as dr
         import mitsuba as mi
@@ -35,7 +34,7 @@ def main():
     except Exception as e:  # an absent module or a variant that does not load
         print(f"{variant}: {e}", file=sys.stderr)
         sys.exit(2)
-    text, (w, h) = rewrite(scene, width, spp)
+    text, size = rewrite(scene, width, spp)
     root = ET.fromstring(text)
     if root.find("integrator") is None:
         root.insert(0, ET.Element("integrator", type="path"))
@@ -51,13 +50,28 @@ def main():
         loaded = mi.load_file(f.name)
     finally:
         os.unlink(f.name)
-    dr.eval(mi.render(loaded, spp=1))
+    return mi, dr, loaded, size
+
+
+def timed_render(mi, dr, loaded, spp, seed=0):
+    """The image of `spp` samples per pixel and the seconds it took, after
+    a 1 spp render that compiles the llvm variants' kernels untimed."""
+    dr.eval(mi.render(loaded, spp=1, seed=seed + 1))
     dr.sync_thread()
     start = time.perf_counter()
-    image = mi.render(loaded, spp=spp)
+    image = mi.render(loaded, spp=spp, seed=seed)
     dr.eval(image)
     dr.sync_thread()
-    seconds = time.perf_counter() - start
+    return image, time.perf_counter() - start
+
+
+def main():
+    if len(sys.argv) not in (5, 6):
+        sys.exit(__doc__)
+    variant, scene, spp, depth = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+    width = int(sys.argv[5]) if len(sys.argv) == 6 else 512
+    mi, dr, loaded, (w, h) = load(variant, scene, spp, depth, width)
+    _, seconds = timed_render(mi, dr, loaded, spp)
     print(f"{w * h * spp / seconds:.0f}")
 
 
