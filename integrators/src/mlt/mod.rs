@@ -175,7 +175,10 @@ pub(crate) fn target(contributions: &Splats) -> f64 {
 /// chains run in parallel; deterministic for a seed. The time limit and
 /// `stop` end the chains early, and the image is normalised by the
 /// mutations made. The result counts mutations as its samples (its time
-/// includes the bootstrap).
+/// includes the bootstrap). A time limit is a target, not a cut-off: the
+/// bootstrap and each chain's first batch of mutations run whatever the
+/// clock says, since without them there is no image, only black; `stop`
+/// (an interrupt) ends even the bootstrap.
 ///
 /// # Errors
 /// If BDPT cannot be built, the scene is black (no bootstrap sample
@@ -224,9 +227,8 @@ pub(crate) fn run_chains<S: Sampler>(
         ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed_precise} ETA {eta}")
             .expect("valid template"),
     );
-    let out_of_time = || {
-        stop.load(Ordering::Relaxed) || settings.time_limit.is_some_and(|t| start.elapsed() >= t)
-    };
+    let stopped = || stop.load(Ordering::Relaxed);
+    let out_of_time = || stopped() || settings.time_limit.is_some_and(|t| start.elapsed() >= t);
     let seed = settings.seed;
     let classes = sampler.classes().max(1);
     let (image, mutations, rays, nanos, b_total) = pool.install(|| -> Result<_, String> {
@@ -241,7 +243,7 @@ pub(crate) fn run_chains<S: Sampler>(
         let fs: Vec<f64> = (0..bootstrap as u64)
             .into_par_iter()
             .map(|i| {
-                if out_of_time() {
+                if stopped() {
                     return 0.0;
                 }
                 let (rays, nanos) = (rays_cast(), ray_nanos());
@@ -265,8 +267,8 @@ pub(crate) fn run_chains<S: Sampler>(
             *sum /= cumulative[c].len().max(1) as f64;
         }
         let b_total: f64 = b.iter().sum();
-        if out_of_time() {
-            // Stopped during the bootstrap: no chain has started.
+        if stopped() {
+            // Interrupted during the bootstrap: no chain has started.
             let black = vec![[0.0f64; 3]; w as usize * h as usize];
             return Ok((
                 black,
@@ -323,7 +325,7 @@ pub(crate) fn run_chains<S: Sampler>(
                 let mut done = 0u64;
                 while done < per_chain {
                     if done % CHECK_EVERY == 0 {
-                        if out_of_time() {
+                        if if done == 0 { stopped() } else { out_of_time() } {
                             break;
                         }
                         bar.inc(CHECK_EVERY.min(per_chain - done));
