@@ -810,12 +810,24 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 Density::zero(Measure::Area)
             };
         };
+        let first = (span.start..end)
+            .find(|&k| self.slots[k].part == 0)
+            .unwrap_or(span.start);
+        // A key names its strategy by address: with no cache to look in and
+        // no density recorded here by that strategy, none can match, and
+        // building one (most of a factor's cost besides evaluating it) is
+        // skipped.
+        let slot = &self.slots[first];
+        let may_match = slot.recorded.is_some()
+            && slot
+                .strategy
+                .is_some_and(|s| s.address() == span.identity.0);
+        if cache.is_none() && !may_match {
+            return self.evaluate(span, strategy);
+        }
         let key = self.key(span);
         if let Some(key) = key {
-            let first = (span.start..end)
-                .find(|&k| self.slots[k].part == 0)
-                .unwrap_or(span.start);
-            if let Some((k, d)) = self.slots[first].recorded {
+            if let Some((k, d)) = slot.recorded {
                 if k == key {
                     return d;
                 }
