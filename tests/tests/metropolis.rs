@@ -127,6 +127,10 @@ fn a_time_limit_shorter_than_the_bootstrap_still_gives_an_image() {
         assert!(!r.complete, "{variant:?} cannot finish in no time");
         assert!(image.iter().flatten().all(|v| v.is_finite()), "{variant:?}");
         let lit = image.iter().filter(|p| p.iter().any(|&v| v > 0.0)).count();
-        assert!(lit > image.len() / 2, "{variant:?}: {lit} of {} pixels lit", image.len());
+        assert!(
+            lit > image.len() / 2,
+            "{variant:?}: {lit} of {} pixels lit",
+            image.len()
+        );
     }
 }
