@@ -164,7 +164,8 @@ struct RenderArgs {
     /// Seed of the random streams.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Stop after this many seconds, keeping what was rendered.
+    /// Stop after this many seconds, keeping what was rendered (Metropolis
+    /// methods finish their bootstrap and a first batch of mutations first).
     #[arg(long)]
     time_limit: Option<f64>,
     /// Output image: `x.exr` (linear HDR) or `x.png` (sRGB preview); the other
