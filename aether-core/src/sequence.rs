@@ -832,15 +832,11 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                     return d;
                 }
             }
-            if let Some(d) = cache.as_ref().and_then(|c| c.get(&key)) {
-                return d;
+            if let Some(cache) = cache {
+                return cache.get_or_insert_with(key, || self.evaluate(span, strategy));
             }
         }
-        let d = self.evaluate(span, strategy);
-        if let (Some(key), Some(cache)) = (key, cache) {
-            cache.insert(key, d);
-        }
-        d
+        self.evaluate(span, strategy)
     }
 
     /// Runs `span`'s strategy in density mode on this path's vertices.
