@@ -82,22 +82,27 @@ impl FactorCache {
         self.entries.len() - 1
     }
 
+    /// Where `key` sits in the table (`Ok`), or the free entry its probe
+    /// ends at (`Err`). The table is never full: it grows at half.
+    /// Inlined: called out of line it cost BDPT 1.4 % more instructions.
+    #[inline]
+    fn probe(&self, key: &FactorKey) -> Result<usize, usize> {
+        let mut i = key.hash64() as usize & self.mask();
+        while self.entries[i].0 == self.generation {
+            if self.entries[i].1 == *key {
+                return Ok(i);
+            }
+            i = (i + 1) & self.mask();
+        }
+        Err(i)
+    }
+
     #[cfg(test)]
     fn get(&self, key: &FactorKey) -> Option<Density> {
         if self.entries.is_empty() {
             return None;
         }
-        let mut i = key.hash64() as usize & self.mask();
-        loop {
-            let (g, k, d) = &self.entries[i];
-            if *g != self.generation {
-                return None;
-            }
-            if k == key {
-                return Some(*d);
-            }
-            i = (i + 1) & self.mask();
-        }
+        self.probe(key).ok().map(|i| self.entries[i].2)
     }
 
     /// The density cached for `key`, or `evaluate`'s, cached: one hash
@@ -110,21 +115,19 @@ impl FactorCache {
         if self.entries.is_empty() {
             self.begin();
         }
-        let mut i = key.hash64() as usize & self.mask();
-        while self.entries[i].0 == self.generation {
-            if self.entries[i].1 == key {
-                return self.entries[i].2;
+        match self.probe(&key) {
+            Ok(i) => self.entries[i].2,
+            Err(free) => {
+                let density = evaluate();
+                if 2 * (self.len + 1) > self.entries.len() {
+                    self.insert(key, density);
+                } else {
+                    self.entries[free] = (self.generation, key, density);
+                    self.len += 1;
+                }
+                density
             }
-            i = (i + 1) & self.mask();
         }
-        let density = evaluate();
-        if 2 * (self.len + 1) > self.entries.len() {
-            self.insert(key, density);
-        } else {
-            self.entries[i] = (self.generation, key, density);
-            self.len += 1;
-        }
-        density
     }
 
     pub(crate) fn insert(&mut self, key: FactorKey, density: Density) {
@@ -134,15 +137,10 @@ impl FactorCache {
         if 2 * (self.len + 1) > self.entries.len() {
             self.grow();
         }
-        let mut i = key.hash64() as usize & self.mask();
-        while self.entries[i].0 == self.generation {
-            if self.entries[i].1 == key {
-                return;
-            }
-            i = (i + 1) & self.mask();
+        if let Err(free) = self.probe(&key) {
+            self.entries[free] = (self.generation, key, density);
+            self.len += 1;
         }
-        self.entries[i] = (self.generation, key, density);
-        self.len += 1;
     }
 
     fn grow(&mut self) {

@@ -228,7 +228,7 @@ pub(crate) fn run_chains<S: Sampler>(
             .expect("valid template"),
     );
     let stopped = || stop.load(Ordering::Relaxed);
-    let out_of_time = || stopped() || settings.time_limit.is_some_and(|t| start.elapsed() >= t);
+    let past_limit = || settings.time_limit.is_some_and(|t| start.elapsed() >= t);
     let seed = settings.seed;
     let classes = sampler.classes().max(1);
     let (image, mutations, rays, nanos, b_total) = pool.install(|| -> Result<_, String> {
@@ -325,7 +325,8 @@ pub(crate) fn run_chains<S: Sampler>(
                 let mut done = 0u64;
                 while done < per_chain {
                     if done % CHECK_EVERY == 0 {
-                        if if done == 0 { stopped() } else { out_of_time() } {
+                        // The first batch runs whatever the clock says.
+                        if stopped() || (done > 0 && past_limit()) {
                             break;
                         }
                         bar.inc(CHECK_EVERY.min(per_chain - done));
