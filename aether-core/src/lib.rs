@@ -74,7 +74,7 @@ pub use rng::{Pcg32, UniformSource};
 pub use sequence::{INLINE_VERTICES, RandomSequence};
 pub use shift::{replay_jacobian, weight_of_shift};
 pub use sometimes::Sometimes;
-pub use split::{Split, densities_of_split, weight_of_split, weights_of_split_variants};
+pub use split::{Split, Splits, densities_of_split, weight_of_split, weights_of_split_variants};
 pub use strategy::{
     DynPairStrategy, DynStrategy, PairStrategy, Prefix, StepKind, Strategy, StrategyRef,
 };

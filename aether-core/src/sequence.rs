@@ -121,6 +121,48 @@ impl FactorKey {
     }
 }
 
+/// The density a step's strategy (`by`) gave its vertices while sampling
+/// them, with what it was conditioned on; the target is the slot's vertex
+/// (and, for a pair, its `partner`). Matching these is what a cache key
+/// would compare, without building or hashing one. It stays with the
+/// vertex when other strategies are assigned to it, and serves them where
+/// they ask for `by`'s density, so that every candidate of a path sees the
+/// same number for it.
+pub(crate) struct Recorded<'s, V> {
+    by: StrategyRef<'s, V>,
+    class: u32,
+    cond: [u64; 2],
+    partner: u64,
+    density: Density,
+}
+
+impl<V> Recorded<'_, V> {
+    /// The recorded density, if it was recorded by `span`'s strategy with
+    /// the depth class, conditioning vertices and targets of `key` (the
+    /// span's). As a cache key does, this leaves the direction out: a
+    /// strategy sees only its conditioning vertices and depth, so a density
+    /// is the same forward and reversed (and a strategy that misstates its
+    /// memory shows, its two directions colliding).
+    fn matching(&self, span: &Span<'_, V>, key: &FactorKey) -> Option<Density> {
+        let matches =
+            key.cond == self.cond && key.targets[1] == self.partner && key.depth == self.class;
+        let a = self.by;
+        let same = || {
+            span.strategy.is_some_and(|b| {
+                a.same(&b) || (a.address(), Kind(a.name()), a.instance()) == span.identity
+            })
+        };
+        (matches && same()).then_some(self.density)
+    }
+}
+
+impl<V> Clone for Recorded<'_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V> Copy for Recorded<'_, V> {}
+
 /// One vertex's bookkeeping.
 pub(crate) struct Slot<'s, V> {
     pub(crate) strategy: Option<StrategyRef<'s, V>>,
@@ -135,7 +177,7 @@ pub(crate) struct Slot<'s, V> {
     /// (it has no density of its own).
     pub(crate) given: bool,
     /// The density recorded while sampling, on the step's first vertex.
-    pub(crate) recorded: Option<(FactorKey, Density)>,
+    pub(crate) recorded: Option<Recorded<'s, V>>,
     /// A running product of recorded densities: for a vertex sampled
     /// forward, of its own and those of the vertices before it, each under
     /// the strategy that sampled it, while they were sampled one by one in
@@ -205,6 +247,17 @@ impl<'s, V> Span<'s, V> {
             memory,
             identity,
         }
+    }
+}
+
+impl<V> Span<'_, V> {
+    /// The same one-vertex step at `start`, in direction `reversed`: what
+    /// MIS asks of each vertex in turn, without reading the strategy's
+    /// identity again.
+    pub(crate) fn at(mut self, start: usize, reversed: bool) -> Self {
+        self.start = start;
+        self.reversed = reversed;
+        self
     }
 }
 
@@ -441,9 +494,23 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 chain: None,
             });
         }
-        let span = Span::new(start, arity, Some(strategy), false, 0);
-        if let Some(key) = self.key(&span) {
-            self.slots[start].recorded = Some((key, density));
+        let memory = strategy.memory();
+        if memory <= 2 {
+            let mut cond = [0u64; 2];
+            for (k, c) in cond.iter_mut().take(memory.min(start)).enumerate() {
+                *c = self.slots[start - 1 - k].id;
+            }
+            self.slots[start].recorded = Some(Recorded {
+                by: strategy,
+                class: strategy.depth_class(start) as u32,
+                cond,
+                partner: if arity == 2 {
+                    self.slots[start + 1].id
+                } else {
+                    0
+                },
+                density,
+            });
             if arity == 1 {
                 let before = match start {
                     0 => Some(PathDensity::ONE),
@@ -756,7 +823,8 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// The cache key of `span`'s density factor on this path, if the
-    /// strategy's memory is short enough to cache.
+    /// strategy's memory is short enough to cache: its strategy, depth
+    /// class, target vertices (in sampling order) and conditioning ones.
     fn key(&self, span: &Span<'_, V>) -> Option<FactorKey> {
         let memory = span.memory;
         if memory > 2 {
@@ -813,30 +881,23 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let first = (span.start..end)
             .find(|&k| self.slots[k].part == 0)
             .unwrap_or(span.start);
-        // A key names its strategy by address: with no cache to look in and
-        // no density recorded here by that strategy, none can match, and
-        // building one (most of a factor's cost besides evaluating it) is
-        // skipped.
-        let slot = &self.slots[first];
-        let may_match = slot.recorded.is_some()
-            && slot
-                .strategy
-                .is_some_and(|s| s.address() == span.identity.0);
-        if cache.is_none() && !may_match {
+        let recorded = self.slots[first].recorded;
+        // With nothing recorded and no cache, no key is needed; a strategy
+        // with a long memory records nothing and caches nothing.
+        let key = match (&cache, recorded) {
+            (None, None) => None,
+            _ => self.key(span),
+        };
+        let Some(key) = key else {
             return self.evaluate(span, strategy);
+        };
+        if let Some(d) = recorded.and_then(|r| r.matching(span, &key)) {
+            return d;
         }
-        let key = self.key(span);
-        if let Some(key) = key {
-            if let Some((k, d)) = slot.recorded {
-                if k == key {
-                    return d;
-                }
-            }
-            if let Some(cache) = cache {
-                return cache.get_or_insert_with(key, || self.evaluate(span, strategy));
-            }
+        match cache {
+            Some(cache) => cache.get_or_insert_with(key, || self.evaluate(span, strategy)),
+            None => self.evaluate(span, strategy),
         }
-        self.evaluate(span, strategy)
     }
 
     /// Runs `span`'s strategy in density mode on this path's vertices.

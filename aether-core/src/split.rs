@@ -88,37 +88,49 @@ impl<'s, V> Split<'s, V> {
     /// assert_eq!(splits[0].samples, 0.0); // no light path hits a pinhole
     /// ```
     #[must_use]
+    #[inline]
     pub fn bidirectional(
         n: usize,
         direct: Option<StrategyRef<'s, V>>,
         portal: Option<StrategyRef<'s, V>>,
         splats: f64,
         through_lens: bool,
-    ) -> SmallVec<[Self; 24]> {
-        let direct = |t: usize| direct.filter(|_| t == 1).map(|d| (d, false));
+    ) -> Splits<'s, V> {
+        let mut splits = Splits::new();
         let samples = |camera: usize| match camera {
             0 if !through_lens => 0.0,
             0 | 1 => splats,
             _ => 1.0,
         };
-        let bidirectional = (0..=n).map(|s| Split {
-            camera: s,
-            middle: direct(n - s).into_iter().collect(),
-            samples: samples(s),
-        });
-        let through_portal = (1..n.saturating_sub(1)).filter_map(|k| {
-            Some(Split {
-                camera: k,
-                middle: [(portal?, false)]
-                    .into_iter()
-                    .chain(direct(n - k - 2))
-                    .collect(),
-                samples: samples(k),
-            })
-        });
-        bidirectional.chain(through_portal).collect()
+        // Pushed one by one: a technique list is large, and an iterator
+        // collected into it cost as much as the weights' arithmetic.
+        let split = |camera: usize, first: Option<StrategyRef<'s, V>>, t: usize| {
+            let middle = match (first, direct.filter(|_| t == 1)) {
+                (None, None) => SmallVec::new(),
+                (Some(a), None) | (None, Some(a)) => SmallVec::from_buf_and_len([(a, false); 2], 1),
+                (Some(a), Some(b)) => SmallVec::from_buf([(a, false), (b, false)]),
+            };
+            Split {
+                camera,
+                middle,
+                samples: samples(camera),
+            }
+        };
+        for s in 0..=n {
+            splits.push(split(s, None, n - s));
+        }
+        if portal.is_some() {
+            for k in 1..n.saturating_sub(1) {
+                splits.push(split(k, portal, n - k - 2));
+            }
+        }
+        splits
     }
 }
+
+/// A list of techniques, inline up to the number BDPT has for paths of
+/// 12 vertices with portals, as [`Split::bidirectional`] makes.
+pub type Splits<'s, V> = SmallVec<[Split<'s, V>; 24]>;
 
 /// The MIS weight of `path`, sampled by `splits[own]`, against every
 /// technique in `splits`, and the density of `path` under its own
@@ -290,8 +302,24 @@ fn split_densities<'s, V: Vertex>(
         reach = reach.max(a.min(n));
         from = from.min(b);
     }
-    let step = |list: &[StrategyRef<'s, V>], i: usize| {
+    // The strategy of a list at position i (the last one repeats), and, for
+    // a factor to look up, its span: the repeating last step's is read once
+    // and moved to each vertex it samples, rather than built from its
+    // strategy's identity there (the chained vertices need no span).
+    let entry = |list: &[StrategyRef<'s, V>], i: usize| {
         list.get(i.min(list.len().saturating_sub(1))).copied()
+    };
+    let last =
+        |list: &[StrategyRef<'s, V>]| list.last().map(|&s| Span::new(0, 1, Some(s), false, 0));
+    let (camera_last, light_last) = (last(camera), last(light));
+    // Entry k of `list` as the span of vertex i.
+    let one = |(list, last): (&[StrategyRef<'s, V>], Option<Span<'s, V>>), k, i, reversed| match (
+        list.get(k),
+        last,
+    ) {
+        (Some(&s), _) if k + 1 < list.len() => Span::new(i, 1, Some(s), reversed, 0),
+        (_, Some(last)) => last.at(i, reversed),
+        _ => Span::new(i, 1, None, reversed, 0),
     };
     // A side with no strategies cannot sample its vertices: density zero.
     let mut factor = |span: Span<'s, V>| {
@@ -301,9 +329,6 @@ fn split_densities<'s, V: Vertex>(
             None => Density::zero(Measure::Area),
         }
     };
-    let one = |step: Option<StrategyRef<'s, V>>, i: usize, reversed: bool| {
-        Span::new(i, 1, step, reversed, 0)
-    };
     // prefix[i]: vertices 0..i from the camera; suffix[i]: i..n from the light.
     prefix.clear();
     prefix.push(PathDensity::ONE);
@@ -311,14 +336,14 @@ fn split_densities<'s, V: Vertex>(
     // carry their prefix products: no factor is looked up for them.
     let mut chained = true;
     for i in 0..reach {
-        let strategy = step(camera, i);
         let chain = if chained {
-            path.chain(i, strategy)
+            path.chain(i, entry(camera, i))
         } else {
             None
         };
         chained = chain.is_some();
-        let p = chain.unwrap_or_else(|| prefix[i].times(factor(one(strategy, i, false))));
+        let p = chain
+            .unwrap_or_else(|| prefix[i].times(factor(one((camera, camera_last), i, i, false))));
         prefix.push(p);
     }
     // suffix[i - from]: vertices i..n from the light.
@@ -329,15 +354,16 @@ fn split_densities<'s, V: Vertex>(
     // carry their suffix products, as the leading ones their prefixes.
     let mut chained = true;
     for i in (from..n).rev() {
-        let strategy = step(light, n - 1 - i);
+        let k = n - 1 - i;
         let chain = if chained {
-            path.suffix_chain(i, strategy)
+            path.suffix_chain(i, entry(light, k))
         } else {
             None
         };
         chained = chain.is_some();
-        suffix[i - from] =
-            chain.unwrap_or_else(|| suffix[i + 1 - from].times(factor(one(strategy, i, true))));
+        suffix[i - from] = chain.unwrap_or_else(|| {
+            suffix[i + 1 - from].times(factor(one((light, light_last), k, i, true)))
+        });
     }
     densities.clear();
     densities.extend(splits.iter().map(|s| {

@@ -127,7 +127,7 @@ impl Lobes {
     }
 
     fn mixture(&self) -> impl Distribution<Value = Vec3> + '_ {
-        Mixture::new(&self.choice, 2, move |i| self.lobes[i])
+        Mixture::new(&self.choice, 2, move |i| &self.lobes[i])
     }
 }
 
