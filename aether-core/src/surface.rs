@@ -65,9 +65,11 @@ impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a
             _ => v.position() - o,
         };
         let first = self.scene.origin(self.from, toward(p));
-        [first, self.scene.origin(self.from, toward(first))]
-            .into_iter()
-            .find(|&o| self.scene.origin(self.from, toward(o)) == o)
+        let second = self.scene.origin(self.from, toward(first));
+        if second == first {
+            return Some(first);
+        }
+        (self.scene.origin(self.from, toward(second)) == second).then_some(second)
     }
 }
 
