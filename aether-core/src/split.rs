@@ -102,8 +102,8 @@ impl<'s, V> Split<'s, V> {
             0 | 1 => splats,
             _ => 1.0,
         };
-        // Pushed one by one: a technique list is large, and an iterator
-        // collected into it cost as much as the weights' arithmetic.
+        // Pushed one by one: built from an iterator chain, with each
+        // middle collected, the list cost BDPT 2 % of its instructions.
         let split = |camera: usize, first: Option<StrategyRef<'s, V>>, t: usize| {
             let middle = match (first, direct.filter(|_| t == 1)) {
                 (None, None) => SmallVec::new(),
