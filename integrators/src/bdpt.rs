@@ -512,10 +512,10 @@ impl<'s> Bdpt<'s> {
         own: Split,
         path: &Path<'_>,
     ) -> SmallVec<[(f64, f64); 16]> {
-        let n = path.len();
+        let (n, mut splits) = (path.len(), aether_core::Splits::new());
         let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
         let (direct, splats) = (Some(one(&kit.direct)), self.splats);
-        let splits = aether_core::Split::bidirectional(n, direct, portal, splats, self.lens);
+        aether_core::Split::bidirectional(n, direct, portal, splats, self.lens, &mut splits);
         let index = match own {
             Split::Bdpt(s) => s,
             Split::Portal(k) => n + k,
