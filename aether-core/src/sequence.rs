@@ -121,6 +121,11 @@ impl FactorKey {
     }
 }
 
+/// What names a strategy in a cache key: its address, type and instance.
+fn identity<V>(s: StrategyRef<'_, V>) -> (usize, Kind, u64) {
+    (s.address(), Kind(s.name()), s.instance())
+}
+
 /// The density a step's strategy (`by`) gave its vertices while sampling
 /// them, with what it was conditioned on; the target is the slot's vertex
 /// (and, for a pair, its `partner`). Matching these is what a cache key
@@ -148,9 +153,8 @@ impl<V> Recorded<'_, V> {
             key.cond == self.cond && key.targets[1] == self.partner && key.depth == self.class;
         let a = self.by;
         let same = || {
-            span.strategy.is_some_and(|b| {
-                a.same(&b) || (a.address(), Kind(a.name()), a.instance()) == span.identity
-            })
+            span.strategy
+                .is_some_and(|b| a.same(&b) || identity(a) == span.identity)
         };
         (matches && same()).then_some(self.density)
     }
@@ -235,7 +239,7 @@ impl<'s, V> Span<'s, V> {
         fixed_id: u64,
     ) -> Self {
         let (memory, identity) = match strategy {
-            Some(s) => (s.memory(), (s.address(), Kind(s.name()), s.instance())),
+            Some(s) => (s.memory(), identity(s)),
             None => (0, (0, Kind(""), 0)),
         };
         Span {
@@ -496,14 +500,10 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
         let memory = strategy.memory();
         if memory <= 2 {
-            let mut cond = [0u64; 2];
-            for (k, c) in cond.iter_mut().take(memory.min(start)).enumerate() {
-                *c = self.slots[start - 1 - k].id;
-            }
             self.slots[start].recorded = Some(Recorded {
                 by: strategy,
                 class: strategy.depth_class(start) as u32,
-                cond,
+                cond: self.ids_before(start, memory),
                 partner: if arity == 2 {
                     self.slots[start + 1].id
                 } else {
@@ -822,6 +822,17 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         sampled.chain(unsampled)
     }
 
+    /// The ids of the (at most two) `memory` vertices before position
+    /// `start`, nearest first, zero where there are none: what a forward
+    /// step is conditioned on.
+    fn ids_before(&self, start: usize, memory: usize) -> [u64; 2] {
+        let mut ids = [0u64; 2];
+        for (k, id) in ids.iter_mut().take(memory.min(start)).enumerate() {
+            *id = self.slots[start - 1 - k].id;
+        }
+        ids
+    }
+
     /// The cache key of `span`'s density factor on this path, if the
     /// strategy's memory is short enough to cache: its strategy, depth
     /// class, target vertices (in sampling order) and conditioning ones.
@@ -845,9 +856,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             }
             self.len() - end
         } else {
-            for (k, c) in cond.iter_mut().take(memory.min(span.start)).enumerate() {
-                *c = self.slots[span.start - 1 - k].id;
-            }
+            cond = self.ids_before(span.start, memory);
             span.start
         };
         let class = span
