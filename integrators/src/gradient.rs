@@ -169,9 +169,10 @@ impl<'s> GradientPathTracer<'s> {
                               base: &RandomSequence<'_, SceneVertex>,
                               offsets: &[Shifted<'_, '_>; 4]| {
             let n = base.len();
-            let splits = techniques(n, &by_light);
+            let (splits, count) = techniques(n, &by_light);
+            let splits = &splits[..count];
             let dx = DENSITIES
-                .with_borrow_mut(|c| densities_of_split(base, &cameras[0], &[], &splits, Some(c)));
+                .with_borrow_mut(|c| densities_of_split(base, &cameras[0], &[], splits, Some(c)));
             let px = dx[own].value();
             // Long paths through near-specular surfaces can overflow f or
             // p: such a path contributes nothing.
@@ -198,7 +199,7 @@ impl<'s> GradientPathTracer<'s> {
                                         &o.path,
                                         &cameras[1 + d],
                                         &[],
-                                        &splits,
+                                        splits,
                                         Some(c),
                                     )
                                 });
