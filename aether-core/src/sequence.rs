@@ -9,6 +9,7 @@ use smallvec::SmallVec;
 
 use crate::density::{Density, Measure, PathDensity};
 use crate::mis::FactorCache;
+use crate::recycle::{Pooled, Recycle};
 use crate::rng::UniformSource;
 use crate::strategy::{DynPairStrategy, DynStrategy, Prefix, StepKind, StrategyRef};
 use crate::vertex::Vertex;
@@ -218,6 +219,10 @@ impl<V> Clone for Slot<'_, V> {
 }
 impl<V> Copy for Slot<'_, V> {}
 
+impl<V: Recycle> Recycle for Slot<'_, V> {
+    type Static = Slot<'static, V::Static>;
+}
+
 /// One step of a sequence seen as a factor of the path density.
 pub(crate) struct Span<'s, V> {
     pub(crate) start: usize,
@@ -313,18 +318,18 @@ impl<V> PartialEq for Span<'_, V> {
 /// let p = path.pdf();
 /// assert!(p.value() > 0.0 && p.dirac_order() == 1); // the camera point is a Dirac
 /// ```
-pub struct RandomSequence<'s, V> {
-    vertices: SmallVec<[V; INLINE_VERTICES]>,
-    slots: SmallVec<[Slot<'s, V>; INLINE_VERTICES]>,
-    pending: SmallVec<[StrategyRef<'s, V>; INLINE_VERTICES]>,
+pub struct RandomSequence<'s, V: Recycle> {
+    vertices: Pooled<[V; INLINE_VERTICES]>,
+    slots: Pooled<[Slot<'s, V>; INLINE_VERTICES]>,
+    pending: Pooled<[StrategyRef<'s, V>; INLINE_VERTICES]>,
     /// Steps whose sampling failed or never ran because an earlier one
     /// failed: the sequence keeps them as a technique, so that MIS can
     /// still weigh other paths by the densities they would have had.
-    unsampled: SmallVec<[StrategyRef<'s, V>; 4]>,
+    unsampled: Pooled<[StrategyRef<'s, V>; 4]>,
     end: Option<(StepKind, Density)>,
 }
 
-impl<V: Clone> Clone for RandomSequence<'_, V> {
+impl<V: Vertex> Clone for RandomSequence<'_, V> {
     fn clone(&self) -> Self {
         RandomSequence {
             vertices: self.vertices.clone(),
@@ -336,7 +341,7 @@ impl<V: Clone> Clone for RandomSequence<'_, V> {
     }
 }
 
-impl<V: std::fmt::Debug> std::fmt::Debug for RandomSequence<'_, V> {
+impl<V: Vertex + std::fmt::Debug> std::fmt::Debug for RandomSequence<'_, V> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let mut l = f.debug_list();
         for (v, s) in self.vertices.iter().zip(&self.slots) {
@@ -358,10 +363,10 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     #[must_use]
     pub fn new() -> Self {
         RandomSequence {
-            vertices: SmallVec::new(),
-            slots: SmallVec::new(),
-            pending: SmallVec::new(),
-            unsampled: SmallVec::new(),
+            vertices: Pooled::new(),
+            slots: Pooled::new(),
+            pending: Pooled::new(),
+            unsampled: Pooled::new(),
             end: None,
         }
     }
@@ -463,6 +468,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
+    #[inline]
     pub fn append_sample(
         &mut self,
         strategy: &'s dyn DynStrategy<V>,

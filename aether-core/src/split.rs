@@ -8,6 +8,7 @@ use smallvec::SmallVec;
 
 use crate::density::{Density, Measure, PathDensity};
 use crate::mis::{DensityCache, Heuristic};
+use crate::recycle::{Pooled, Recycle};
 use crate::sequence::{RandomSequence, Span};
 use crate::strategy::StrategyRef;
 use crate::vertex::Vertex;
@@ -61,7 +62,7 @@ impl<'s, V> Split<'s, V> {
     }
 }
 
-impl<'s, V> Split<'s, V> {
+impl<'s, V: Recycle> Split<'s, V> {
     /// Every technique of a bidirectional sampler for paths of `n`
     /// vertices: first, for s = 0..=n, s vertices from the camera and the
     /// rest from the light (index s), with `direct` sampling the last
@@ -130,7 +131,11 @@ impl<'s, V> Split<'s, V> {
 
 /// A list of techniques, inline up to the number BDPT has for paths of
 /// 12 vertices with portals, as [`Split::bidirectional`] fills.
-pub type Splits<'s, V> = SmallVec<[Split<'s, V>; 24]>;
+pub type Splits<'s, V> = Pooled<[Split<'s, V>; 24]>;
+
+impl<V: Recycle> Recycle for Split<'_, V> {
+    type Static = Split<'static, V::Static>;
+}
 
 /// The MIS weight of `path`, sampled by `splits[own]`, against every
 /// technique in `splits`, and the density of `path` under its own

@@ -4,6 +4,7 @@ use smallvec::SmallVec;
 
 use crate::density::{Density, Measure};
 use crate::distribution::{Coords, Distribution, Embed, Step, Uniforms};
+use crate::recycle::Recycle;
 use crate::rng::UniformSource;
 use crate::vertex::{Geometry, Vertex};
 
@@ -333,6 +334,10 @@ impl<V> Clone for StrategyRef<'_, V> {
     }
 }
 impl<V> Copy for StrategyRef<'_, V> {}
+
+impl<V: Recycle> Recycle for StrategyRef<'_, V> {
+    type Static = StrategyRef<'static, V::Static>;
+}
 
 impl<V> std::fmt::Debug for StrategyRef<'_, V> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

@@ -74,6 +74,10 @@ impl TestVertex {
     }
 }
 
+impl crate::recycle::Recycle for TestVertex {
+    type Static = Self;
+}
+
 impl Vertex for TestVertex {
     fn position(&self) -> Vec3 {
         self.position

@@ -2,6 +2,8 @@
 
 use glam::Vec3;
 
+use crate::recycle::Recycle;
+
 /// Where a vertex lies, which fixes the measure its density is expressed in.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Geometry {
@@ -21,8 +23,9 @@ pub enum Geometry {
 }
 
 /// A path vertex. Scene layers define their own (with material, emitter and
-/// shading frame); the language only reads position and geometry.
-pub trait Vertex: Clone {
+/// shading frame); the language only reads position and geometry. Its
+/// [`Recycle`] twin is itself (`type Static = Self;`) unless it borrows.
+pub trait Vertex: Clone + Recycle {
     /// Position in world space (unused for vertices at infinity).
     fn position(&self) -> Vec3;
     /// The kind of place the vertex lies on.

@@ -2,9 +2,8 @@
 //! subpath to a light subpath costs one connection's factors, not a pass
 //! over the whole path.
 
-use aether_core::INLINE_VERTICES;
+use aether_core::{INLINE_VERTICES, Pooled};
 use glam::{DVec3, Vec3};
-use smallvec::SmallVec;
 
 use crate::bsdf::Bsdf;
 use crate::integrand::{Integrand, geometry_term};
@@ -41,9 +40,9 @@ pub enum End {
 pub struct Subpath<'a> {
     f: Integrand<'a>,
     end: End,
-    vertices: SmallVec<[SceneVertex; INLINE_VERTICES]>,
-    bsdfs: SmallVec<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
-    products: SmallVec<[DVec3; INLINE_VERTICES]>,
+    vertices: Pooled<[SceneVertex; INLINE_VERTICES]>,
+    bsdfs: Pooled<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
+    products: Pooled<[DVec3; INLINE_VERTICES]>,
 }
 
 impl<'a> Subpath<'a> {
@@ -53,9 +52,9 @@ impl<'a> Subpath<'a> {
         Subpath {
             f,
             end,
-            vertices: SmallVec::new(),
-            bsdfs: SmallVec::new(),
-            products: SmallVec::new(),
+            vertices: Pooled::new(),
+            bsdfs: Pooled::new(),
+            products: Pooled::new(),
         }
     }
 

@@ -1,6 +1,6 @@
 //! The path vertex of a loaded scene, and ray casting that produces it.
 
-use aether_core::{Geometry as Place, RayCaster, Vertex};
+use aether_core::{Geometry as Place, RayCaster, Recycle, Vertex};
 use glam::{Vec2, Vec3};
 
 use crate::geometry::{Hit, Primitive, offset_origin};
@@ -161,6 +161,10 @@ impl SceneVertex {
             _ => None,
         }
     }
+}
+
+impl Recycle for SceneVertex {
+    type Static = Self;
 }
 
 impl Vertex for SceneVertex {

@@ -8,7 +8,7 @@
 //! same uniforms) until the first pair of rough vertices, where the offset
 //! reconnects to the base path and copies it from there. Its Jacobian is a
 //! ratio of the language's conditional densities of the replayed steps
-//! ([`replay_jacobian`]), and the MIS weights between the base path's
+//! ([`replay_jacobian`](aether_core::replay_jacobian)), and the MIS weights between the base path's
 //! techniques and those of the neighbour shifted back come from the same
 //! densities ([`weight_of_shift`]). No density is written here.
 //!

@@ -238,7 +238,8 @@ pub fn render_tiles<T: Send>(
                 return false;
             }
             let (rays_before, nanos_before) = (rays_cast(), ray_nanos());
-            let mut local = Vec::new();
+            // One allocation per tile and round, not one per doubling.
+            let mut local = Vec::with_capacity((TILE * TILE) as usize);
             for y in ty..(ty + TILE).min(cy + ch) {
                 for x in tx..(tx + TILE).min(cx + cw) {
                     let samples = PixelSamples {

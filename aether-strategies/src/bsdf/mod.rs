@@ -20,7 +20,7 @@ use std::cell::Cell;
 use std::f32::consts::PI;
 
 use aether_core::primitives::DiracDirection;
-use aether_core::{Distribution, Frame, InFrame};
+use aether_core::{Distribution, Frame, InFrame, Recycle};
 use glam::{Vec2, Vec3};
 
 pub use fresnel::{fresnel_conductor, fresnel_dielectric, fresnel_diffuse_reflectance};
@@ -58,6 +58,10 @@ pub struct Bsdf<'s> {
     frame: Frame,
     geometric_normal: Vec3,
     uv: Vec2,
+}
+
+impl Recycle for Bsdf<'_> {
+    type Static = Bsdf<'static>;
 }
 
 impl Material {
