@@ -187,9 +187,9 @@ impl Shear {
         }
     }
 
-    /// Distance and barycentrics (of v0, v1, v2) of the hit, if any, in (t_min, t_max).
+    /// Distance and edge functions of the hit, if any, in (t_min, t_max).
     #[inline]
-    fn intersect(&self, v: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, [f32; 3])> {
+    fn intersect(&self, v: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, Edges)> {
         let rel = v.map(|p| self.permute(p - self.origin));
         let xy = rel.map(|p| (p.x - self.s.x * p.z, p.y - self.s.y * p.z));
         let (a, b, c) = (xy[0], xy[1], xy[2]);
@@ -213,7 +213,20 @@ impl Shear {
         let z = rel.map(|p| self.s.z * p.z);
         let t_scaled = u * z[0] + w2 * z[1] + w * z[2];
         let t = t_scaled / det;
-        (t > t_min && t < t_max).then(|| (t, [u / det, w2 / det, w / det]))
+        (t > t_min && t < t_max).then_some((t, Edges([u, w2, w], det)))
+    }
+}
+
+/// The three edge functions of a hit and their sum: barycentrics once
+/// divided, which only the closest hit of a ray needs (a closest-hit ray
+/// meets several candidates, and the division is the test's slowest step).
+#[derive(Clone, Copy)]
+struct Edges([f32; 3], f32);
+
+impl Edges {
+    fn barycentrics(self) -> [f32; 3] {
+        let Edges([u, w2, w], det) = self;
+        [u / det, w2 / det, w / det]
     }
 }
 
@@ -287,18 +300,18 @@ impl Geometry {
         if let Some(bvh) = &self.bvh {
             let ray = bvh_ray(origin, dir, t_max);
             let mut hit = RayHit::none();
-            let mut bary = [0.0; 3];
+            let mut edges = Edges([0.0; 3], 1.0);
             bvh.ray_traverse(ray, &mut hit, |r, id| {
                 match shear.intersect(&self.triangles[id], 0.0, r.tmax) {
-                    Some((t, b)) => {
-                        bary = b;
+                    Some((t, e)) => {
+                        edges = e;
                         t
                     }
                     None => f32::INFINITY,
                 }
             });
             if hit.t < t_max {
-                best = Some((hit.t, hit.primitive_id as usize, bary));
+                best = Some((hit.t, hit.primitive_id as usize, edges.barycentrics()));
             }
         }
         let mut sphere_hit = None;

@@ -216,12 +216,13 @@ impl RayCaster<SceneVertex> for Scene {
         let hit = self.geometry.intersect(origin, direction, f32::INFINITY);
         // A thin lens's aperture is a surface: light paths reach the camera
         // on it, and it stops what crosses it (rays leaving it cannot).
-        let far = hit
-            .as_ref()
-            .map_or(f32::INFINITY, |h| (h.position - origin).length());
-        let lens = self.aperture().filter(|_| from.site != Site::Lens);
-        if let Some((a, p)) = lens.and_then(|a| Some((a, a.crossing(origin, direction, far)?))) {
-            return Some(SceneVertex::lens(p, a.axis));
+        if let Some(a) = self.aperture().filter(|_| from.site != Site::Lens) {
+            let far = hit
+                .as_ref()
+                .map_or(f32::INFINITY, |h| (h.position - origin).length());
+            if let Some(p) = a.crossing(origin, direction, far) {
+                return Some(SceneVertex::lens(p, a.axis));
+            }
         }
         match hit {
             Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
