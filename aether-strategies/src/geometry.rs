@@ -219,7 +219,8 @@ impl Shear {
 
 /// The three edge functions of a hit and their sum: barycentrics once
 /// divided, which only the closest hit of a ray needs (a closest-hit ray
-/// meets several candidates, and the division is the test's slowest step).
+/// meets several candidates; each still divides once for its distance,
+/// and the three divisions here wait for the one kept).
 #[derive(Clone, Copy)]
 struct Edges([f32; 3], f32);
 
