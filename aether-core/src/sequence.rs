@@ -591,6 +591,23 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             .flatten()
     }
 
+    /// True if vertex `i` is a step of its own (not part of a pair).
+    pub(crate) fn single_step(&self, i: usize) -> bool {
+        self.slots.get(i).is_some_and(|s| s.arity == 1)
+    }
+
+    /// The density of vertices `0..len` under the strategies that sampled
+    /// them: the running product recorded while sampling where there is
+    /// one, else factor by factor.
+    pub(crate) fn steps_density(&self, len: usize) -> PathDensity {
+        match len.checked_sub(1) {
+            None => PathDensity::ONE,
+            Some(i) => self
+                .prefix_chain(i)
+                .unwrap_or_else(|| self.pdf_of_steps(0..len)),
+        }
+    }
+
     /// Number of vertices.
     #[must_use]
     pub fn len(&self) -> usize {

@@ -417,3 +417,61 @@ fn weights_of_splits_match_combine_on_bdpt_candidates() {
     }
     assert!(compared > 1000, "{compared}");
 }
+
+/// `weight_of_last_step` gives, bit for bit, the weights and own densities
+/// that `weight_of_split` gives for a path tracer's two techniques (BSDF
+/// sampling throughout, or direct light sampling of the last vertex), on
+/// paths made by either, of every length.
+#[test]
+fn last_step_weights_match_splits_for_a_path_tracer() {
+    use aether_core::{Split, StrategyRef, weight_of_last_step, weight_of_split};
+    let scene = TestScene::open_box();
+    let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
+    let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
+    let strategies = [one(&camera), one(&look), one(&bounce)];
+    let by_light = [(one(&light), false)];
+    let mut rng = Pcg32::new(5, 0);
+    let mut compared = [0; 2];
+    for _ in 0..400 {
+        let mut path = RandomSequence::new();
+        path.append(&camera).append(&look);
+        path.repeat(&bounce, 3 + (rng.next_u32() % 5) as usize, &mut rng);
+        // Paths ended by a miss, and those that stopped at the camera's
+        // first vertex, have no last step to choose.
+        if !path.is_complete() || path.len() < 3 {
+            continue;
+        }
+        let n = path.len();
+        for (own, count) in compared.iter_mut().enumerate() {
+            path.truncate(n - 1);
+            let last: StrategyRef<'_, TestVertex> =
+                if own == 0 { one(&bounce) } else { one(&light) };
+            let StrategyRef::One(s) = last else {
+                unreachable!()
+            };
+            if !path.append_sample(s, &mut rng) {
+                continue;
+            }
+            let splits = [Split::new(n, &[]), Split::new(n - 1, &by_light)];
+            let expected = weight_of_split(
+                &path,
+                &strategies,
+                &[],
+                &splits,
+                own,
+                Heuristic::POWER,
+                None,
+            );
+            let alternatives = [one(&bounce), one(&light)];
+            let found = weight_of_last_step(&path, &alternatives, own, Heuristic::POWER);
+            assert_eq!(
+                found.0.to_bits(),
+                expected.0.to_bits(),
+                "{n} vertices, technique {own}"
+            );
+            assert_eq!(found.1.value().to_bits(), expected.1.value().to_bits());
+            *count += 1;
+        }
+    }
+    assert!(compared[0] > 100 && compared[1] > 100, "{compared:?}");
+}

@@ -2,7 +2,9 @@
 //! roulette, direct light sampling at every vertex, and MIS between the two
 //! ways each light vertex could have been sampled.
 
-use aether_core::{DynStrategy, Heuristic, RandomSequence, Split, StrategyRef, weight_of_split};
+use aether_core::{
+    DynStrategy, Heuristic, RandomSequence, Split, StrategyRef, weight_of_last_step,
+};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -92,9 +94,11 @@ impl Estimator for PathTracer<'_> {
 }
 
 /// The MIS weight of `path` as made by technique `own` of the two a path
-/// tracer has for its last vertex (0, BSDF sampling like the vertices
-/// before it; 1, direct light sampling), over its density: zero where the
-/// density vanishes (a grazing vertex, whose contribution vanishes with it).
+/// tracer has for its last vertex (0, the camera-side strategy that sampled
+/// the vertices before it; 1, direct light sampling), over its density:
+/// zero where the density vanishes (a grazing vertex, whose contribution
+/// vanishes with it). What the camera sees first has the first technique
+/// only: direct sampling cannot see through the lens.
 pub(crate) fn weight(
     path: &RandomSequence<'_, SceneVertex>,
     camera: &[StrategyRef<'_, SceneVertex>],
@@ -102,9 +106,13 @@ pub(crate) fn weight(
     own: usize,
     heuristic: Heuristic,
 ) -> f64 {
-    let by_light = [(StrategyRef::One(direct), false)];
-    let (splits, count) = techniques(path.len(), &by_light);
-    let (w, p) = weight_of_split(path, camera, &[], &splits[..count], own, heuristic, None);
+    let n = path.len();
+    let Some(&by_camera) = camera.get((n.max(1) - 1).min(camera.len().saturating_sub(1))) else {
+        return 0.0;
+    };
+    let alternatives = [by_camera, StrategyRef::One(direct)];
+    let count = if n == 2 { 1 } else { 2 };
+    let (w, p) = weight_of_last_step(path, &alternatives[..count], own, heuristic);
     let w_over_p = Some(w / p.value()).filter(|r| r.is_finite() && !p.is_zero());
     w_over_p.unwrap_or(0.0)
 }
