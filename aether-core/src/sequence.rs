@@ -913,7 +913,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let first = (span.start..end)
             .find(|&k| self.slots[k].part == 0)
             .unwrap_or(span.start);
-        let recorded = self.slots[first].recorded;
+        // Borrowed, not copied: in BDPT the copy was a quarter of this
+        // function's own instructions.
+        let recorded = self.slots[first].recorded.as_ref();
         // With nothing recorded and no cache, no key is needed; a strategy
         // with a long memory records nothing and caches nothing.
         let key = match (&cache, recorded) {
