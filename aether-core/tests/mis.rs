@@ -424,7 +424,7 @@ fn weights_of_splits_match_combine_on_bdpt_candidates() {
 /// paths made by either, of every length.
 #[test]
 fn last_step_weights_match_splits_for_a_path_tracer() {
-    use aether_core::{Split, StrategyRef, weight_of_last_step, weight_of_split};
+    use aether_core::{Split, weight_of_last_step, weight_of_split};
     let scene = TestScene::open_box();
     let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
     let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
@@ -444,12 +444,9 @@ fn last_step_weights_match_splits_for_a_path_tracer() {
         let n = path.len();
         for (own, count) in compared.iter_mut().enumerate() {
             path.truncate(n - 1);
-            let last: StrategyRef<'_, TestVertex> =
-                if own == 0 { one(&bounce) } else { one(&light) };
-            let StrategyRef::One(s) = last else {
-                unreachable!()
-            };
-            if !path.append_sample(s, &mut rng) {
+            let last: &dyn aether_core::DynStrategy<TestVertex> =
+                if own == 0 { &bounce } else { &light };
+            if !path.append_sample(last, &mut rng) {
                 continue;
             }
             let splits = [Split::new(n, &[]), Split::new(n - 1, &by_light)];

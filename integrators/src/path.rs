@@ -97,8 +97,7 @@ impl Estimator for PathTracer<'_> {
 /// tracer has for its last vertex (0, the camera-side strategy that sampled
 /// the vertices before it; 1, direct light sampling), over its density:
 /// zero where the density vanishes (a grazing vertex, whose contribution
-/// vanishes with it). What the camera sees first has the first technique
-/// only: direct sampling cannot see through the lens.
+/// vanishes with it).
 pub(crate) fn weight(
     path: &RandomSequence<'_, SceneVertex>,
     camera: &[StrategyRef<'_, SceneVertex>],
@@ -111,10 +110,16 @@ pub(crate) fn weight(
         return 0.0;
     };
     let alternatives = [by_camera, StrategyRef::One(direct)];
-    let count = if n == 2 { 1 } else { 2 };
-    let (w, p) = weight_of_last_step(path, &alternatives[..count], own, heuristic);
+    let (w, p) = weight_of_last_step(path, &alternatives[..technique_count(n)], own, heuristic);
     let w_over_p = Some(w / p.value()).filter(|r| r.is_finite() && !p.is_zero());
     w_over_p.unwrap_or(0.0)
+}
+
+/// How many techniques a path tracer has for paths of `n` vertices: two,
+/// but one for what the camera sees first, which direct sampling cannot
+/// see through the lens.
+fn technique_count(n: usize) -> usize {
+    if n == 2 { 1 } else { 2 }
 }
 
 /// A path tracer's techniques for paths of `n` vertices: BSDF sampling
@@ -127,6 +132,6 @@ pub(crate) fn techniques<'s>(
     n: usize,
     by_light: &[(StrategyRef<'s, SceneVertex>, bool)],
 ) -> ([Split<'s, SceneVertex>; 2], usize) {
-    let count = if n == 2 { 1 } else { 2 };
+    let count = technique_count(n);
     ([Split::new(n, &[]), Split::new(n - 1, by_light)], count)
 }
