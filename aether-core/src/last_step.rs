@@ -51,15 +51,58 @@ pub fn weight_of_last_step<'s, V: Vertex>(
     if n == 0 || !path.is_complete() || own >= alternatives.len() || !path.single_step(n - 1) {
         return (0.0, zero);
     }
-    let prefix = path.steps_density(n - 1);
-    let densities: SmallVec<[PathDensity; 4]> = alternatives
+    let last: SmallVec<[Density; 4]> = alternatives
         .iter()
         .map(|&s| match s {
-            StrategyRef::One(_) => {
-                prefix.times(path.factor(&Span::new(n - 1, 1, Some(s), false, 0), None))
-            }
-            StrategyRef::Two(_) => zero,
+            StrategyRef::One(_) => path.factor(&Span::new(n - 1, 1, Some(s), false, 0), None),
+            StrategyRef::Two(_) => Density::zero(Measure::Area),
         })
         .collect();
-    (heuristic.weight(&densities, own), densities[own])
+    weight_of_step(path.pdf_of_prefix(n - 1), &last, own, heuristic)
+}
+
+/// As [`weight_of_last_step`], from the densities it would look up: the
+/// density `prefix` of the vertices before the last (the product the
+/// techniques share, [`RandomSequence::pdf_of_prefix`]) and the last
+/// vertex's density under each alternative, `last[own]` the one that
+/// sampled it. For a vertex whose path is no longer at hand: a light
+/// sample weighed after the next step was sampled from the same vertices,
+/// its density under that step's strategy found while sampling
+/// ([`RandomSequence::append_sample_measuring`]). The same arithmetic in
+/// the same order, so the same bits.
+///
+/// ```
+/// use aether_core::{Density, Heuristic, Measure, PathDensity, weight_of_step};
+/// let prefix = PathDensity::ONE.times(Density::new(2.0, Measure::Area));
+/// let last = [Density::new(1.0, Measure::Area), Density::new(3.0, Measure::Area)];
+/// let (w, p) = weight_of_step(prefix, &last, 1, Heuristic::POWER);
+/// assert!((w - 0.9).abs() < 1e-12 && p.value() == 6.0); // 3² / (1² + 3²)
+/// ```
+#[must_use]
+pub fn weight_of_step(
+    prefix: PathDensity,
+    last: &[Density],
+    own: usize,
+    heuristic: Heuristic,
+) -> (f64, PathDensity) {
+    if own >= last.len() {
+        return (0.0, PathDensity::ONE.times(Density::zero(Measure::Area)));
+    }
+    // In an array where they fit: collected into a list, two densities
+    // cost as much again as the heuristic itself.
+    let mut inline = [PathDensity::ONE; 4];
+    let spilled: SmallVec<[PathDensity; 4]>;
+    let densities = match inline.get_mut(..last.len()) {
+        Some(d) => {
+            for (p, &l) in d.iter_mut().zip(last) {
+                *p = prefix.times(l);
+            }
+            &*d
+        }
+        None => {
+            spilled = last.iter().map(|&d| prefix.times(d)).collect();
+            &spilled[..]
+        }
+    };
+    (heuristic.weight(densities, own), densities[own])
 }

@@ -427,7 +427,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         for k in 0..self.pending.len() {
             let s = self.pending[k];
             if result == StepKind::Vertex {
-                result = self.sample_step(s, rng);
+                result = self.sample_step(s, rng, None);
                 if result == StepKind::Vertex {
                     continue;
                 }
@@ -478,13 +478,80 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         self.sample(rng) == StepKind::Vertex
     }
 
+    /// Appends `strategy` and samples it at once, as
+    /// [`append_sample`](Self::append_sample), and returns with the outcome
+    /// the density with which `strategy` would have produced `other` in
+    /// place of its vertex: what the MIS weight of a vertex that another
+    /// strategy sampled after the same vertices needs of this one (see
+    /// [`weight_of_step`](crate::weight_of_step)). Both come from one
+    /// distribution, built once; the density is the one
+    /// [`pdf_of`](Self::pdf_of) would find, to the bit.
+    ///
+    /// ```
+    /// use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene};
+    /// use aether_core::{Pcg32, RandomSequence};
+    ///
+    /// let scene = TestScene::open_box();
+    /// let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
+    /// let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
+    /// let mut rng = Pcg32::new(5, 0);
+    /// let mut lit = RandomSequence::new();
+    /// lit.append(&camera).append(&look).append(&light);
+    /// lit.sample(&mut rng);
+    /// let mut path = lit.clone();
+    /// path.truncate(2);
+    /// let (_, by_bounce) = path.append_sample_measuring(&bounce, &mut rng, &lit.vertices()[2]);
+    /// // The density of the light's vertex under bounce sampling, as MIS finds it.
+    /// let mut technique = RandomSequence::new();
+    /// technique.append(&camera).append(&look).append(&bounce);
+    /// let whole = technique.pdf_of(&lit).value();
+    /// assert!(by_bounce.value() > 0.0);
+    /// assert!((lit.pdf_of_prefix(2).value() * by_bounce.value() - whole).abs() <= 1e-12 * whole);
+    /// ```
+    pub fn append_sample_measuring(
+        &mut self,
+        strategy: &'s dyn DynStrategy<V>,
+        rng: &mut dyn UniformSource,
+        other: &V,
+    ) -> (bool, Density) {
+        let step = StrategyRef::One(strategy);
+        // Steps appended before go first; a sequence that has stopped
+        // samples nothing more, but the density is still asked for.
+        if self.sample(rng) != StepKind::Vertex {
+            self.unsampled.push(step);
+            EVALUATIONS.with(|c| c.set(c.get() + 1));
+            return (
+                false,
+                strategy.density_of(Prefix::forward(&self.vertices), other),
+            );
+        }
+        let mut density = Density::zero(Measure::Area);
+        let kind = self.sample_step(step, rng, Some((other, &mut density)));
+        if kind != StepKind::Vertex {
+            self.unsampled.push(step);
+        }
+        (kind == StepKind::Vertex, density)
+    }
+
+    /// Samples one step; with `measure`, also the density of its vertex
+    /// under the step's strategy, written to its slot.
     fn sample_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
         rng: &mut dyn UniformSource,
+        measure: Option<(&V, &mut Density)>,
     ) -> StepKind {
         let mut out = SmallVec::<[V; 2]>::new();
-        let (kind, density) = strategy.sample_step(Prefix::forward(&self.vertices), rng, &mut out);
+        let prefix = Prefix::forward(&self.vertices);
+        let (kind, density) = match (measure, strategy) {
+            (Some((other, slot)), StrategyRef::One(s)) => {
+                EVALUATIONS.with(|c| c.set(c.get() + 1));
+                let (step, d) = s.sample_step_measuring(prefix, rng, &mut out, other);
+                *slot = d;
+                step
+            }
+            _ => strategy.sample_step(prefix, rng, &mut out),
+        };
         if kind != StepKind::Vertex {
             self.end = Some((kind, density));
             return kind;
@@ -597,14 +664,37 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// The density of vertices `0..len` under the strategies that sampled
-    /// them: the running product recorded while sampling where there is
-    /// one, else factor by factor.
-    pub(crate) fn steps_density(&self, len: usize) -> PathDensity {
+    /// them, each conditioned on the vertices before it: the running
+    /// product recorded while sampling where there is one, else factor by
+    /// factor. What the techniques that share those vertices share (see
+    /// [`weight_of_step`](crate::weight_of_step)).
+    #[must_use]
+    pub fn pdf_of_prefix(&self, len: usize) -> PathDensity {
         match len.checked_sub(1) {
             None => PathDensity::ONE,
             Some(i) => self
                 .prefix_chain(i)
                 .unwrap_or_else(|| self.pdf_of_steps(0..len)),
+        }
+    }
+
+    /// The density of the last vertex under the strategy that sampled it,
+    /// conditioned on the vertices before it: the one recorded while
+    /// sampling (zero for a given vertex, a reversed one or one of a pair).
+    #[must_use]
+    pub fn last_density(&self) -> Density {
+        let zero = Density::zero(Measure::Area);
+        let Some(i) = self.len().checked_sub(1) else {
+            return zero;
+        };
+        match self.slots[i] {
+            Slot {
+                strategy: Some(s),
+                arity: 1,
+                reversed: false,
+                ..
+            } => self.factor(&Span::new(i, 1, Some(s), false, 0), None),
+            _ => zero,
         }
     }
 

@@ -204,6 +204,19 @@ pub trait DynStrategy<V> {
     ) -> (StepKind, Density);
     /// The density of `target`.
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density;
+    /// As [`sample_step`](Self::sample_step), and with it
+    /// [`density_of`](Self::density_of) `other` after the same prefix, from
+    /// one distribution: a vertex that another strategy produced there
+    /// (direct light sampling's, say), whose MIS weight needs this
+    /// strategy's density for it. The same numbers as the two calls, with
+    /// the distribution built once.
+    fn sample_step_measuring(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+        other: &V,
+    ) -> ((StepKind, Density), Density);
 }
 
 /// The type-erased form of a [`PairStrategy`]; implemented for every pair
@@ -233,7 +246,7 @@ fn draw(dims: usize, rng: &mut dyn UniformSource) -> Uniforms {
 }
 
 fn run<T, D: Distribution<Value = Step<T>>>(
-    d: D,
+    d: &D,
     rng: &mut dyn UniformSource,
     push: impl FnOnce(T),
 ) -> (StepKind, Density) {
@@ -282,12 +295,41 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
     ) -> (StepKind, Density) {
-        run(self.distribution(prefix), rng, |v| out.push(v))
+        step(self, prefix, rng, out, None).0
     }
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
         self.distribution(prefix)
             .density(&Step::Vertex(target.clone()))
     }
+    fn sample_step_measuring(
+        &self,
+        prefix: Prefix<'_, V>,
+        rng: &mut dyn UniformSource,
+        out: &mut SmallVec<[V; 2]>,
+        other: &V,
+    ) -> ((StepKind, Density), Density) {
+        step(self, prefix, rng, out, Some(other))
+    }
+}
+
+/// One step of `strategy`, and the density of `other` from the same
+/// distribution if asked. One body for both entry points, kept out of
+/// line: with a copy in each, the compiler stopped inlining the
+/// distribution's sampling into either, which cost more than the second
+/// distribution saved.
+#[inline(never)]
+fn step<V: Vertex, S: Strategy<V> + ?Sized>(
+    strategy: &S,
+    prefix: Prefix<'_, V>,
+    rng: &mut dyn UniformSource,
+    out: &mut SmallVec<[V; 2]>,
+    other: Option<&V>,
+) -> ((StepKind, Density), Density) {
+    let d = strategy.distribution(prefix);
+    let other = other.map_or(Density::zero(Measure::Area), |v| {
+        d.density(&Step::Vertex(v.clone()))
+    });
+    (run(&d, rng, |v| out.push(v)), other)
 }
 
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
@@ -309,7 +351,7 @@ impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
     ) -> (StepKind, Density) {
-        run(self.distribution(prefix), rng, |(a, b)| {
+        run(&self.distribution(prefix), rng, |(a, b)| {
             out.push(a);
             out.push(b);
         })

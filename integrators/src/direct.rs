@@ -1,7 +1,7 @@
 //! Direct lighting: at the first surface the camera sees, one light sample
 //! and one BSDF sample, each weighed by MIS against the other.
 
-use aether_core::{DynStrategy, Heuristic, RandomSequence, StrategyRef};
+use aether_core::{DynStrategy, Heuristic, RandomSequence, StrategyRef, weight_of_step};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -9,10 +9,10 @@ use aether_strategies::lights::Lights;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
 use aether_strategies::scene::Scene;
 use aether_strategies::subpath::{End, Subpath};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::estimator::{Estimator, Rng, Splats};
-use crate::path::weight;
+use crate::path::{over, weight};
 
 /// Direct lighting with MIS between light and BSDF sampling (paths of at
 /// most two edges: lights seen directly and lights reflected once).
@@ -66,12 +66,26 @@ impl Estimator for DirectLighting<'_> {
         let importance = f.importance(pixel, path.vertices());
         // What the camera sees first has one technique.
         let mut radiance = eye.emitted(2) * weight(&path, &camera, &direct, 0, h);
+        let mut lamp = None;
         if eye.connectible(1) && path.append_sample(&direct, rng) {
-            let lit = eye.connect_lamp(2, &path.vertices()[2]);
-            radiance += lit * weight(&path, &camera, &direct, 1, h);
+            let v = path.vertices()[2];
+            let lit = eye.connect_lamp(2, &v);
+            if lit != DVec3::ZERO {
+                lamp = Some((v, lit, path.last_density()));
+            }
         }
         path.truncate(2);
-        if path.append_sample(&bsdf, rng) {
+        // The BSDF sample comes from the distribution that weighs the lamp.
+        let sampled = match lamp {
+            Some((v, lit, own)) => {
+                let (sampled, by_bsdf) = path.append_sample_measuring(&bsdf, rng, &v);
+                let (w, p) = weight_of_step(path.pdf_of_prefix(2), &[by_bsdf, own], 1, h);
+                radiance += lit * over(w, p);
+                sampled
+            }
+            None => path.append_sample(&bsdf, rng),
+        };
+        if sampled {
             let emitted = Subpath::of(f, End::Camera, path.vertices()).emitted(3);
             radiance += emitted * weight(&path, &camera, &direct, 0, h);
         }

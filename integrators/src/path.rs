@@ -3,7 +3,8 @@
 //! ways each light vertex could have been sampled.
 
 use aether_core::{
-    DynStrategy, Heuristic, RandomSequence, Split, StrategyRef, weight_of_last_step,
+    DynStrategy, Heuristic, PathDensity, RandomSequence, Split, StrategyRef, weight_of_last_step,
+    weight_of_step,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
@@ -74,23 +75,46 @@ impl Estimator for PathTracer<'_> {
                 radiance +=
                     emitted * importance * weight(&path, &camera, &direct, 0, self.heuristic);
             }
-            if n > self.max_depth || !eye.connectible(n - 1) {
-                // A specular vertex sees no light by sampling it.
-            } else if path.append_sample(&direct, rng) {
-                let lit = eye.connect_lamp(n, &path.vertices()[n]);
+            if n > self.max_depth {
+                break;
+            }
+            // A light sample that lights the vertex (a specular one sees no
+            // light by sampling it), with its density.
+            let mut lamp = None;
+            if eye.connectible(n - 1) && path.append_sample(&direct, rng) {
+                let v = path.vertices()[n];
+                let lit = eye.connect_lamp(n, &v);
                 if lit != DVec3::ZERO {
-                    radiance +=
-                        lit * importance * weight(&path, &camera, &direct, 1, self.heuristic);
+                    lamp = Some((v, lit, path.last_density()));
                 }
             }
             path.truncate(n);
-            if n > self.max_depth || !path.append_sample(&bsdf, rng) {
+            // The next step comes from the distribution that weighs the lamp.
+            let next = match lamp {
+                Some((v, lit, own)) => {
+                    let (next, by_bsdf) = path.append_sample_measuring(&bsdf, rng, &v);
+                    let prefix = path.pdf_of_prefix(n);
+                    let (w, p) = weight_of_step(prefix, &[by_bsdf, own], 1, self.heuristic);
+                    radiance += lit * importance * over(w, p);
+                    next
+                }
+                None => path.append_sample(&bsdf, rng),
+            };
+            if !next {
                 break;
             }
             eye.push(path.vertices()[n]);
         }
         radiance.as_vec3()
     }
+}
+
+/// A MIS weight over its technique's density: zero where the density
+/// vanishes (a grazing vertex, whose contribution vanishes with it).
+pub(crate) fn over(w: f64, p: PathDensity) -> f64 {
+    Some(w / p.value())
+        .filter(|r| r.is_finite() && !p.is_zero())
+        .unwrap_or(0.0)
 }
 
 /// The MIS weight of `path` as made by technique `own` of the two a path
@@ -111,8 +135,7 @@ pub(crate) fn weight(
     };
     let alternatives = [by_camera, StrategyRef::One(direct)];
     let (w, p) = weight_of_last_step(path, &alternatives[..technique_count(n)], own, heuristic);
-    let w_over_p = Some(w / p.value()).filter(|r| r.is_finite() && !p.is_zero());
-    w_over_p.unwrap_or(0.0)
+    over(w, p)
 }
 
 /// How many techniques a path tracer has for paths of `n` vertices: two,
