@@ -317,6 +317,25 @@ impl PathDensity {
         }
     }
 
+    /// `w / self`: a MIS weight over the density of its path, what an
+    /// estimate multiplies its integrand by; zero where the density
+    /// vanishes or the quotient is not finite (a grazing vertex, whose
+    /// contribution vanishes with its density).
+    ///
+    /// ```
+    /// use aether_core::{Density, Measure, PathDensity};
+    /// let p = PathDensity::ONE.times(Density::new(4.0, Measure::Area));
+    /// assert_eq!(p.weight_over(0.5), 0.125);
+    /// assert_eq!(p.times(Density::zero(Measure::Area)).weight_over(0.5), 0.0);
+    /// ```
+    #[must_use]
+    pub fn weight_over(self, w: f64) -> f64 {
+        match w / self.value() {
+            r if r.is_finite() && !self.is_zero() => r,
+            _ => 0.0,
+        }
+    }
+
     /// `other / self` in the sense of MIS: infinite if `other` has more Dirac
     /// factors, zero if it has fewer, the ratio of values if they match.
     #[must_use]

@@ -7,9 +7,85 @@ use smallvec::SmallVec;
 
 use crate::density::{Density, Measure, PathDensity};
 use crate::mis::Heuristic;
+use crate::rng::UniformSource;
 use crate::sequence::{RandomSequence, Span};
-use crate::strategy::StrategyRef;
+use crate::strategy::{DynStrategy, Prefix, StepKind, StrategyRef};
 use crate::vertex::Vertex;
+
+/// A vertex sampled beside a path, after its last vertex, by a strategy
+/// other than the one the path goes on with (next-event estimation's light
+/// sample), with the density that strategy gave it. The path is left as it
+/// was; the next step weighs it ([`RandomSequence::append_sample_beside`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Aside<V> {
+    /// The vertex.
+    pub vertex: V,
+    /// Its density under the strategy that sampled it, conditioned on the
+    /// path's vertices.
+    pub density: Density,
+}
+
+impl<'s, V: Vertex> RandomSequence<'s, V> {
+    /// Samples `strategy` once after this sequence's vertices without
+    /// appending it: the vertex, with the density recorded while sampling
+    /// it, or `None` if the step produced none (or the sequence stopped
+    /// before its last step).
+    pub fn sample_aside(
+        &self,
+        strategy: &dyn DynStrategy<V>,
+        rng: &mut dyn UniformSource,
+    ) -> Option<Aside<V>> {
+        if !self.is_complete() {
+            return None;
+        }
+        let mut out = SmallVec::<[V; 2]>::new();
+        let (kind, density) = strategy.sample_step(Prefix::forward(self.vertices()), rng, &mut out);
+        let vertex = out.pop().filter(|_| kind == StepKind::Vertex)?;
+        Some(Aside { vertex, density })
+    }
+
+    /// Appends `strategy` and samples it, as
+    /// [`append_sample`](Self::append_sample); with `aside`, a vertex
+    /// sampled beside the same vertices by another strategy, also returns
+    /// the MIS weight of `aside` between the two strategies (its own and
+    /// `strategy`), over its density: what its estimate multiplies its
+    /// integrand by (zero where that density vanishes, a grazing vertex
+    /// whose contribution vanishes with it). `strategy`'s density for it
+    /// comes from the distribution the step is sampled from (see
+    /// [`append_sample_measuring`](Self::append_sample_measuring)).
+    ///
+    /// ```
+    /// use aether_core::testing::{Bounce, CameraPoint, LightSample, LookDown, TestScene};
+    /// use aether_core::{Heuristic, Pcg32, RandomSequence};
+    ///
+    /// let scene = TestScene::open_box();
+    /// let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
+    /// let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
+    /// let mut rng = Pcg32::new(2, 0);
+    /// let mut path = RandomSequence::new();
+    /// path.append(&camera).append_sample(&look, &mut rng);
+    /// let lamp = path.sample_aside(&light, &mut rng).expect("a point on the light");
+    /// let (_, w_over_p) = path.append_sample_beside(&bounce, &mut rng, Some(&lamp), Heuristic::POWER);
+    /// // The light sample's weight over its path's density: positive where it can be lit.
+    /// assert!(w_over_p > 0.0 && w_over_p.is_finite());
+    /// ```
+    pub fn append_sample_beside(
+        &mut self,
+        strategy: &'s dyn DynStrategy<V>,
+        rng: &mut dyn UniformSource,
+        aside: Option<&Aside<V>>,
+        heuristic: Heuristic,
+    ) -> (bool, f64) {
+        let Some(aside) = aside else {
+            return (self.append_sample(strategy, rng), 0.0);
+        };
+        let n = self.len();
+        let (sampled, by_step) = self.append_sample_measuring(strategy, rng, &aside.vertex);
+        let last = [by_step, aside.density];
+        let (w, p) = weight_of_step(self.pdf_of_prefix(n), &last, 1, heuristic);
+        (sampled, p.weight_over(w))
+    }
+}
 
 /// The MIS weight of `path` against the techniques that sample its
 /// vertices but the last as `path` did (each step by the strategy that

@@ -69,7 +69,7 @@ pub use choice::{Mixture, RussianRoulette, Select};
 pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
-pub use last_step::{weight_of_last_step, weight_of_step};
+pub use last_step::{Aside, weight_of_last_step, weight_of_step};
 pub use mis::{DensityCache, Heuristic, Weights, combine};
 pub use mutation::{ChainPath, Mutation, Mutator, acceptance, propose, transition_density};
 pub use primary::{PrimarySamples, Replay};

@@ -678,26 +678,6 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
     }
 
-    /// The density of the last vertex under the strategy that sampled it,
-    /// conditioned on the vertices before it: the one recorded while
-    /// sampling (zero for a given vertex, a reversed one or one of a pair).
-    #[must_use]
-    pub fn last_density(&self) -> Density {
-        let zero = Density::zero(Measure::Area);
-        let Some(i) = self.len().checked_sub(1) else {
-            return zero;
-        };
-        match self.slots[i] {
-            Slot {
-                strategy: Some(s),
-                arity: 1,
-                reversed: false,
-                ..
-            } => self.factor(&Span::new(i, 1, Some(s), false, 0), None),
-            _ => zero,
-        }
-    }
-
     /// Number of vertices.
     #[must_use]
     pub fn len(&self) -> usize {

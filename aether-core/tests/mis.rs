@@ -473,14 +473,14 @@ fn last_step_weights_match_splits_for_a_path_tracer() {
     assert!(compared[0] > 100 && compared[1] > 100, "{compared:?}");
 }
 
-/// A light sample weighed after the next bounce was sampled from the same
-/// vertices, its bounce density found while sampling
-/// (`append_sample_measuring`), has the weight `weight_of_last_step` gives
-/// it on its own path, to the bit; and the bounce is the one `append_sample`
-/// would have drawn, from the same uniforms.
+/// A light sample set aside and weighed by the next bounce
+/// (`sample_aside`, `append_sample_beside`) has the weight
+/// `weight_of_last_step` gives it on its own path, to the bit; the aside
+/// is the vertex `append_sample` would have drawn, and the bounce too, from
+/// the same uniforms.
 #[test]
-fn measured_steps_weigh_as_the_last_step_and_sample_the_same() {
-    use aether_core::{weight_of_last_step, weight_of_step};
+fn asides_weigh_as_the_last_step_and_sample_the_same() {
+    use aether_core::weight_of_last_step;
     let scene = TestScene::open_box();
     let (camera, look) = (CameraPoint::default(), LookDown::new(&scene));
     let (bounce, light) = (Bounce::new(&scene), LightSample::new(&scene));
@@ -491,24 +491,20 @@ fn measured_steps_weigh_as_the_last_step_and_sample_the_same() {
         let mut path = RandomSequence::new();
         path.append(&camera).append(&look);
         path.repeat(&bounce, 2 + (rng.next_u32() % 5) as usize, &mut rng);
-        if !path.is_complete() || !path.append_sample(&light, &mut rng) {
+        if !path.is_complete() {
             continue;
         }
-        let n = path.len() - 1;
-        let expected = weight_of_last_step(&path, &alternatives, 1, Heuristic::POWER);
-        let (lamp, own) = (path.vertices()[n], path.last_density());
-        path.truncate(n);
+        let (mut lit, mut twin) = (path.clone(), rng.clone());
+        let Some(lamp) = path.sample_aside(&light, &mut rng) else {
+            continue;
+        };
+        assert!(lit.append_sample(&light, &mut twin));
+        assert_eq!(lit.vertices().last(), Some(&lamp.vertex));
+        let (w, p) = weight_of_last_step(&lit, &alternatives, 1, Heuristic::POWER);
         let mut plain = path.clone();
-        let mut twin = rng.clone();
-        let (sampled, by_bounce) = path.append_sample_measuring(&bounce, &mut rng, &lamp);
-        let found = weight_of_step(
-            path.pdf_of_prefix(n),
-            &[by_bounce, own],
-            1,
-            Heuristic::POWER,
-        );
-        assert_eq!(found.0.to_bits(), expected.0.to_bits(), "{n} vertices");
-        assert_eq!(found.1.value().to_bits(), expected.1.value().to_bits());
+        let (sampled, found) =
+            path.append_sample_beside(&bounce, &mut rng, Some(&lamp), Heuristic::POWER);
+        assert_eq!(found.to_bits(), p.weight_over(w).to_bits());
         assert_eq!(plain.append_sample(&bounce, &mut twin), sampled);
         assert_eq!(plain.vertices(), path.vertices());
         assert_eq!(twin.next_u32(), rng.next_u32(), "the same uniforms drawn");

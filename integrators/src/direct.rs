@@ -1,7 +1,7 @@
 //! Direct lighting: at the first surface the camera sees, one light sample
 //! and one BSDF sample, each weighed by MIS against the other.
 
-use aether_core::{DynStrategy, Heuristic, RandomSequence, StrategyRef, weight_of_step};
+use aether_core::{DynStrategy, Heuristic, RandomSequence, StrategyRef};
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
 use aether_strategies::integrand::Integrand;
@@ -12,7 +12,7 @@ use aether_strategies::subpath::{End, Subpath};
 use glam::{DVec3, Vec3};
 
 use crate::estimator::{Estimator, Rng, Splats};
-use crate::path::{over, weight};
+use crate::path::weight;
 
 /// Direct lighting with MIS between light and BSDF sampling (paths of at
 /// most two edges: lights seen directly and lights reflected once).
@@ -66,25 +66,14 @@ impl Estimator for DirectLighting<'_> {
         let importance = f.importance(pixel, path.vertices());
         // What the camera sees first has one technique.
         let mut radiance = eye.emitted(2) * weight(&path, &camera, &direct, 0, h);
-        let mut lamp = None;
-        if eye.connectible(1) && path.append_sample(&direct, rng) {
-            let v = path.vertices()[2];
-            let lit = eye.connect_lamp(2, &v);
-            if lit != DVec3::ZERO {
-                lamp = Some((v, lit, path.last_density()));
-            }
-        }
-        path.truncate(2);
-        // The BSDF sample comes from the distribution that weighs the lamp.
-        let sampled = match lamp {
-            Some((v, lit, own)) => {
-                let (sampled, by_bsdf) = path.append_sample_measuring(&bsdf, rng, &v);
-                let (w, p) = weight_of_step(path.pdf_of_prefix(2), &[by_bsdf, own], 1, h);
-                radiance += lit * over(w, p);
-                sampled
-            }
-            None => path.append_sample(&bsdf, rng),
-        };
+        let lamp = eye.connectible(1).then(|| path.sample_aside(&direct, rng));
+        let lit = lamp
+            .flatten()
+            .map_or(DVec3::ZERO, |l| eye.connect_lamp(2, &l.vertex));
+        let lamp = lamp.flatten().filter(|_| lit != DVec3::ZERO);
+        // The BSDF sample weighs the light sample.
+        let (sampled, w) = path.append_sample_beside(&bsdf, rng, lamp.as_ref(), h);
+        radiance += lit * w;
         if sampled {
             let emitted = Subpath::of(f, End::Camera, path.vertices()).emitted(3);
             radiance += emitted * weight(&path, &camera, &direct, 0, h);

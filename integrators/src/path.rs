@@ -3,8 +3,7 @@
 //! ways each light vertex could have been sampled.
 
 use aether_core::{
-    DynStrategy, Heuristic, PathDensity, RandomSequence, Split, StrategyRef, weight_of_last_step,
-    weight_of_step,
+    DynStrategy, Heuristic, RandomSequence, Split, StrategyRef, weight_of_last_step,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::Camera;
@@ -78,28 +77,17 @@ impl Estimator for PathTracer<'_> {
             if n > self.max_depth {
                 break;
             }
-            // A light sample that lights the vertex (a specular one sees no
-            // light by sampling it), with its density.
-            let mut lamp = None;
-            if eye.connectible(n - 1) && path.append_sample(&direct, rng) {
-                let v = path.vertices()[n];
-                let lit = eye.connect_lamp(n, &v);
-                if lit != DVec3::ZERO {
-                    lamp = Some((v, lit, path.last_density()));
-                }
-            }
-            path.truncate(n);
-            // The next step comes from the distribution that weighs the lamp.
-            let next = match lamp {
-                Some((v, lit, own)) => {
-                    let (next, by_bsdf) = path.append_sample_measuring(&bsdf, rng, &v);
-                    let prefix = path.pdf_of_prefix(n);
-                    let (w, p) = weight_of_step(prefix, &[by_bsdf, own], 1, self.heuristic);
-                    radiance += lit * importance * over(w, p);
-                    next
-                }
-                None => path.append_sample(&bsdf, rng),
-            };
+            // A light sample beside the path (a specular vertex sees no light
+            // by sampling it), weighed by the step the path goes on with.
+            let lamp = eye
+                .connectible(n - 1)
+                .then(|| path.sample_aside(&direct, rng));
+            let lit = lamp
+                .flatten()
+                .map_or(DVec3::ZERO, |l| eye.connect_lamp(n, &l.vertex));
+            let lamp = lamp.flatten().filter(|_| lit != DVec3::ZERO);
+            let (next, w) = path.append_sample_beside(&bsdf, rng, lamp.as_ref(), self.heuristic);
+            radiance += lit * importance * w;
             if !next {
                 break;
             }
@@ -107,14 +95,6 @@ impl Estimator for PathTracer<'_> {
         }
         radiance.as_vec3()
     }
-}
-
-/// A MIS weight over its technique's density: zero where the density
-/// vanishes (a grazing vertex, whose contribution vanishes with it).
-pub(crate) fn over(w: f64, p: PathDensity) -> f64 {
-    Some(w / p.value())
-        .filter(|r| r.is_finite() && !p.is_zero())
-        .unwrap_or(0.0)
 }
 
 /// The MIS weight of `path` as made by technique `own` of the two a path
@@ -135,7 +115,7 @@ pub(crate) fn weight(
     };
     let alternatives = [by_camera, StrategyRef::One(direct)];
     let (w, p) = weight_of_last_step(path, &alternatives[..technique_count(n)], own, heuristic);
-    over(w, p)
+    p.weight_over(w)
 }
 
 /// How many techniques a path tracer has for paths of `n` vertices: two,
