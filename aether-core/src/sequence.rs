@@ -34,6 +34,11 @@ pub fn density_evaluations() -> u64 {
     EVALUATIONS.with(Cell::get)
 }
 
+/// Counts one density evaluation for [`density_evaluations`].
+fn count_evaluation() {
+    EVALUATIONS.with(|c| c.set(c.get() + 1));
+}
+
 /// A fresh vertex identity. Ids come in per-thread blocks of 2³², so they
 /// are unique across threads without contention; 0 is never used.
 pub(crate) fn fresh_id() -> u64 {
@@ -427,7 +432,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         for k in 0..self.pending.len() {
             let s = self.pending[k];
             if result == StepKind::Vertex {
-                result = self.sample_step(s, rng, None);
+                result = self.sample_step(s, rng, None).0;
                 if result == StepKind::Vertex {
                     continue;
                 }
@@ -519,42 +524,43 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         // samples nothing more, but the density is still asked for.
         if self.sample(rng) != StepKind::Vertex {
             self.unsampled.push(step);
-            EVALUATIONS.with(|c| c.set(c.get() + 1));
+            count_evaluation();
             return (
                 false,
                 strategy.density_of(Prefix::forward(&self.vertices), other),
             );
         }
-        let mut density = Density::zero(Measure::Area);
-        let kind = self.sample_step(step, rng, Some((other, &mut density)));
+        let (kind, density) = self.sample_step(step, rng, Some(other));
         if kind != StepKind::Vertex {
             self.unsampled.push(step);
         }
         (kind == StepKind::Vertex, density)
     }
 
-    /// Samples one step; with `measure`, also the density of its vertex
-    /// under the step's strategy, written to its slot.
+    /// Samples one step; with `measure`, also returns the density with
+    /// which the step's strategy would have produced that vertex in place
+    /// of its own (zero without).
     fn sample_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
         rng: &mut dyn UniformSource,
-        measure: Option<(&V, &mut Density)>,
-    ) -> StepKind {
+        measure: Option<&V>,
+    ) -> (StepKind, Density) {
         let mut out = SmallVec::<[V; 2]>::new();
         let prefix = Prefix::forward(&self.vertices);
-        let (kind, density) = match (measure, strategy) {
-            (Some((other, slot)), StrategyRef::One(s)) => {
-                EVALUATIONS.with(|c| c.set(c.get() + 1));
-                let (step, d) = s.sample_step_measuring(prefix, rng, &mut out, other);
-                *slot = d;
-                step
+        let ((kind, density), measured) = match (measure, strategy) {
+            (Some(other), StrategyRef::One(s)) => {
+                count_evaluation();
+                s.sample_step_measuring(prefix, rng, &mut out, other)
             }
-            _ => strategy.sample_step(prefix, rng, &mut out),
+            _ => (
+                strategy.sample_step(prefix, rng, &mut out),
+                Density::zero(Measure::Area),
+            ),
         };
         if kind != StepKind::Vertex {
             self.end = Some((kind, density));
-            return kind;
+            return (kind, measured);
         }
         let start = self.vertices.len();
         let arity = out.len();
@@ -593,7 +599,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 self.slots[start].chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
             }
         }
-        StepKind::Vertex
+        (StepKind::Vertex, measured)
     }
 
     /// The product of the densities of vertices `0..=i` under the
@@ -1006,7 +1012,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// Runs `span`'s strategy in density mode on this path's vertices.
     fn evaluate(&self, span: &Span<'_, V>, strategy: StrategyRef<'_, V>) -> Density {
-        EVALUATIONS.with(|c| c.set(c.get() + 1));
+        count_evaluation();
         let end = span.start + span.arity;
         if span.reversed {
             let prefix = Prefix::reversed(&self.vertices[end..]);
