@@ -120,6 +120,13 @@ impl DiscreteDistribution {
     /// `[0, 1)` that the chosen branch can reuse.
     #[must_use]
     pub fn select(&self, u: f32) -> (usize, f32) {
+        if self.pmf.len() == 1 {
+            // A certain outcome (most lobe choices, a box filter's one
+            // cell): `u` is already its remapped uniform, the value the
+            // division below would return, without a division's latency on
+            // every scattering event.
+            return (0, below_one(u.max(0.0)));
+        }
         let u64 = f64::from(u);
         // First i with cdf[i + 1] > u: outcomes of zero probability are skipped.
         let i = self.cdf[1..]
@@ -165,6 +172,16 @@ mod tests {
             let (i, r) = d.select(k as f32 / 1000.0);
             assert!(i == 1 || i == 3);
             assert!((0.0..1.0).contains(&r));
+        }
+    }
+
+    #[test]
+    fn a_certain_outcome_keeps_its_uniform() {
+        let d = DiscreteDistribution::new(&[2.5]).unwrap();
+        for u in [0.0, 1e-9, 0.3, 0.5, 0.999_999_9, 1.0, -0.0, f32::NAN] {
+            // What the general case computes for outcome 0.
+            let general = below_one(((f64::from(u) - d.cdf[0]) / d.pmf[0]).max(0.0) as f32);
+            assert_eq!(d.select(u).1.to_bits(), general.to_bits(), "u = {u}");
         }
     }
 
