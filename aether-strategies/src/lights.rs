@@ -21,10 +21,12 @@ use crate::vertex::{SceneVertex, Site};
 /// What an emitter is made of, for sampling.
 #[derive(Debug)]
 enum Source {
-    /// Mesh `mesh` of the geometry, its triangles chosen by area.
+    /// Mesh `mesh` of the geometry, its triangles chosen by area; the
+    /// triangles built once, not at every light sample.
     Mesh {
         mesh: u32,
         triangles: DiscreteDistribution,
+        pieces: Vec<UniformTriangle>,
     },
     /// Sphere `sphere` of the geometry.
     Sphere { sphere: u32 },
@@ -81,6 +83,9 @@ impl<'s> Lights<'s> {
                     let source = Source::Mesh {
                         mesh: *shape as u32,
                         triangles,
+                        pieces: (0..mesh.triangles.len())
+                            .map(|t| triangle(scene, *shape as u32, t))
+                            .collect(),
                     };
                     (
                         luminance(*radiance) * std::f64::consts::PI * mesh.area(),
@@ -284,11 +289,15 @@ impl<'s> Lights<'s> {
     fn points(&self, e: usize) -> impl Distribution<Value = Step<SceneVertex>> + '_ {
         let scene = self.scene;
         match &self.sources[e] {
-            Source::Mesh { mesh: m, triangles } => {
+            Source::Mesh {
+                mesh: m,
+                triangles,
+                pieces,
+            } => {
                 // The triangle is chosen by area and named by the vertex's site.
                 let on = move |t: usize| {
                     let at = move |p| Some(SceneVertex::on_triangle(scene, *m, t as u32, p));
-                    OnSurface::new(triangle(scene, *m, t), at)
+                    OnSurface::new(pieces[t], at)
                 };
                 let area = Select::new(triangles, 2, on, move |v| triangle_of(v, *m));
                 Either::Left(Either::Left(area))

@@ -110,21 +110,27 @@ impl Distribution for UniformDisk {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UniformTriangle {
     p: [Vec3; 3],
+    /// The reciprocal of the area, found once: a light's triangles are
+    /// built once and sampled at every vertex of every path, and the
+    /// square root and division cost more than the sampling itself.
+    inverse_area: f64,
 }
 
 impl UniformTriangle {
     /// The triangle with these corners.
     #[must_use]
     pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
-        UniformTriangle { p: [p0, p1, p2] }
+        let p = [p0, p1, p2];
+        UniformTriangle {
+            p,
+            inverse_area: 1.0 / area_of(&p),
+        }
     }
 
     /// Its area.
     #[must_use]
     pub fn area(&self) -> f64 {
-        let e1 = (self.p[1] - self.p[0]).as_dvec3();
-        let e2 = (self.p[2] - self.p[0]).as_dvec3();
-        0.5 * e1.cross(e2).length()
+        area_of(&self.p)
     }
 
     /// Barycentrics (b₀, b₁) of a point in the triangle's plane, or `None`
@@ -152,8 +158,15 @@ impl UniformTriangle {
     }
 
     fn pdf(&self) -> Density {
-        Density::new(1.0 / self.area(), Measure::Area)
+        Density::new(self.inverse_area, Measure::Area)
     }
+}
+
+/// The area of the triangle with corners `p`, in double precision.
+fn area_of(p: &[Vec3; 3]) -> f64 {
+    let e1 = (p[1] - p[0]).as_dvec3();
+    let e2 = (p[2] - p[0]).as_dvec3();
+    0.5 * e1.cross(e2).length()
 }
 
 impl Distribution for UniformTriangle {
