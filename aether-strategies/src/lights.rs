@@ -18,16 +18,20 @@ use crate::scene::{Emitter, Scene};
 use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
 
+/// Mesh `mesh` of the geometry, its triangles chosen by area; the
+/// triangles built once, not at every light sample.
+#[derive(Debug)]
+struct MeshLight {
+    mesh: u32,
+    triangles: DiscreteDistribution,
+    pieces: Vec<UniformTriangle>,
+}
+
 /// What an emitter is made of, for sampling.
 #[derive(Debug)]
 enum Source {
-    /// Mesh `mesh` of the geometry, its triangles chosen by area; the
-    /// triangles built once, not at every light sample.
-    Mesh {
-        mesh: u32,
-        triangles: DiscreteDistribution,
-        pieces: Vec<UniformTriangle>,
-    },
+    /// A mesh of the geometry.
+    Mesh(MeshLight),
     /// Sphere `sphere` of the geometry.
     Sphere { sphere: u32 },
     /// A point or spot light at `position`, emitting in `frame`.
@@ -80,13 +84,13 @@ impl<'s> Lights<'s> {
                     // A mesh without area emits nothing: power zero, never chosen.
                     let triangles = DiscreteDistribution::new(&areas)
                         .unwrap_or_else(|_| DiscreteDistribution::new(&[1.0]).expect("one weight"));
-                    let source = Source::Mesh {
+                    let source = Source::Mesh(MeshLight {
                         mesh: *shape as u32,
                         triangles,
                         pieces: (0..mesh.triangles.len())
                             .map(|t| triangle(scene, *shape as u32, t))
                             .collect(),
-                    };
+                    });
                     (
                         luminance(*radiance) * std::f64::consts::PI * mesh.area(),
                         source,
@@ -289,17 +293,14 @@ impl<'s> Lights<'s> {
     fn points(&self, e: usize) -> impl Distribution<Value = Step<SceneVertex>> + '_ {
         let scene = self.scene;
         match &self.sources[e] {
-            Source::Mesh {
-                mesh: m,
-                triangles,
-                pieces,
-            } => {
+            Source::Mesh(light) => {
                 // The triangle is chosen by area and named by the vertex's site.
+                let m = light.mesh;
                 let on = move |t: usize| {
-                    let at = move |p| Some(SceneVertex::on_triangle(scene, *m, t as u32, p));
-                    OnSurface::new(pieces[t], at)
+                    let at = move |p| Some(SceneVertex::on_triangle(scene, m, t as u32, p));
+                    OnSurface::new(light.pieces[t], at)
                 };
-                let area = Select::new(triangles, 2, on, move |v| triangle_of(v, *m));
+                let area = Select::new(&light.triangles, 2, on, move |v| triangle_of(v, m));
                 Either::Left(Either::Left(area))
             }
             Source::Sphere { sphere: i } => {
