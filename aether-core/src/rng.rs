@@ -4,11 +4,22 @@
 pub trait UniformSource {
     /// The next uniform.
     fn next_f32(&mut self) -> f32;
+    /// The next `out.len()` uniforms, in order: the same values as as many
+    /// calls of [`next_f32`](Self::next_f32), drawn through one call, since
+    /// a step's uniforms come through a `dyn` source.
+    fn fill(&mut self, out: &mut [f32]) {
+        for x in out {
+            *x = self.next_f32();
+        }
+    }
 }
 
 impl<U: UniformSource + ?Sized> UniformSource for &mut U {
     fn next_f32(&mut self) -> f32 {
         (**self).next_f32()
+    }
+    fn fill(&mut self, out: &mut [f32]) {
+        (**self).fill(out);
     }
 }
 
@@ -53,11 +64,26 @@ impl UniformSource for Pcg32 {
         // 24 random bits: every value is exactly representable and below one.
         (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
     }
+    fn fill(&mut self, out: &mut [f32]) {
+        for x in out {
+            *x = self.next_f32();
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fill_draws_what_single_draws_draw() {
+        let (mut a, mut b) = (Pcg32::new(3, 9), Pcg32::new(3, 9));
+        let mut filled = [0.0f32; 5];
+        (&mut a as &mut dyn UniformSource).fill(&mut filled);
+        let single: Vec<f32> = (0..5).map(|_| b.next_f32()).collect();
+        assert_eq!(filled.as_slice(), single.as_slice());
+        assert_eq!(a.next_u32(), b.next_u32());
+    }
 
     #[test]
     fn streams_differ_and_repeat() {

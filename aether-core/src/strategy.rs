@@ -255,9 +255,7 @@ fn run<T, D: Distribution<Value = Step<T>>>(
     let mut buffer = [0.0f32; 8];
     let list;
     let u: &[f32] = if dims <= buffer.len() {
-        for x in &mut buffer[..dims] {
-            *x = rng.next_f32();
-        }
+        rng.fill(&mut buffer[..dims]);
         &buffer[..dims]
     } else {
         list = draw(dims, rng);

@@ -151,6 +151,22 @@ fn piecewise_constant_1d() {
 }
 
 #[test]
+fn piecewise_constant_with_one_cell_is_uniform() {
+    // A box filter's table takes the one-cell shortcut; it is still a
+    // primitive like the others, and returns its uniform unchanged.
+    let d = PiecewiseConstant1D::new(&[2.5]).unwrap();
+    run(&d, &Grid::new(Interval(0.0, 1.0), 32));
+    for u in [0.0, 0.3, 0.999_999_9] {
+        let s = d.sample(&[u]).unwrap();
+        assert_eq!((s.value, s.density.value()), (u, 1.0));
+    }
+    run(
+        &PiecewiseConstant2D::new(&[0.7], 1, 1).unwrap(),
+        &Grid::new(Square, 24),
+    );
+}
+
+#[test]
 fn piecewise_constant_2d() {
     let values: Vec<f64> = (0..12 * 8)
         .map(|i| ((i * 7919) % 13) as f64 + if i % 5 == 0 { 0.0 } else { 0.5 })

@@ -40,6 +40,12 @@ impl Distribution for PiecewiseConstant1D {
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<f32>> {
         let (i, rest) = self.cells.select(u[0]);
+        if self.cells.len() == 1 {
+            // One cell (a box filter's table): the uniform itself, with no
+            // rescaling to round.
+            let density = Density::new(self.cell_density(0), Measure::Length);
+            return Some(Sample::new(below_one(rest), density));
+        }
         let n = self.cells.len() as f64;
         let mut x = below_one(((i as f64 + f64::from(rest)) / n) as f32);
         // Rounding may carry a point at the top of cell i into cell i + 1.
