@@ -179,7 +179,14 @@ where
         let (i, rest) = choice.select(u[0]);
         let s = sample_with_first(u, rest, |u| (self.branch)(i).sample(u))?;
         // The recorded density is the mixture's, not the chosen branch's:
-        // MIS and estimators need the density of the value.
+        // MIS and estimators need the density of the value. With one
+        // branch the two agree (the harness holds every branch to it), and
+        // evaluating the branch again cost a diffuse bounce a frame change
+        // and a density.
+        if choice.len() == 1 {
+            let density = Density::discrete(choice.probability(0)) * s.density;
+            return Some(Sample::new(s.value, density));
+        }
         let density = self.density(&s.value);
         Some(Sample::new(s.value, density))
     }
