@@ -12,8 +12,8 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, RandomSequence, Sometimes, StrategyRef,
-    weights_of_split_variants,
+    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, PathDensity, RandomSequence, Sometimes,
+    StrategyRef, weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -442,7 +442,8 @@ impl<'s> Bdpt<'s> {
         let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
         let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
         let (mut seen, weights) = (DVec3::ZERO, self.weights(run.kit, &looks, own, &run.path));
-        for (&(j, _), (w, p)) in pixels.iter().zip(weights) {
+        for (&(j, _), &(w, p)) in pixels.iter().zip(&weights) {
+            let p = p.value();
             let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
@@ -511,7 +512,7 @@ impl<'s> Bdpt<'s> {
         looks: &[StrategyRef<'a, SceneVertex>],
         own: Split,
         path: &Path<'_>,
-    ) -> SmallVec<[(f64, f64); 16]> {
+    ) -> SmallVec<[(f64, PathDensity); 16]> {
         let (n, mut splits) = (path.len(), aether_core::Splits::new());
         let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
         let (direct, splats) = (Some(one(&kit.direct)), self.splats);
@@ -523,10 +524,9 @@ impl<'s> Bdpt<'s> {
         // Each pixel's camera direction takes the place of `look` in turn.
         let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
         let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
-        let found = DENSITIES.with_borrow_mut(|cache| {
+        DENSITIES.with_borrow_mut(|cache| {
             let (h, c) = (self.heuristic, Some(cache));
             weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
-        });
-        found.iter().map(|&(w, p)| (w, p.value())).collect()
+        })
     }
 }
