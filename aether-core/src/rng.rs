@@ -64,11 +64,6 @@ impl UniformSource for Pcg32 {
         // 24 random bits: every value is exactly representable and below one.
         (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
     }
-    fn fill(&mut self, out: &mut [f32]) {
-        for x in out {
-            *x = self.next_f32();
-        }
-    }
 }
 
 #[cfg(test)]

@@ -88,7 +88,10 @@ impl<'s> Lights<'s> {
                         mesh: *shape as u32,
                         triangles,
                         pieces: (0..mesh.triangles.len())
-                            .map(|t| triangle(scene, *shape as u32, t))
+                            .map(|t| {
+                                let [a, b, c] = mesh.corners(t);
+                                UniformTriangle::new(a, b, c)
+                            })
                             .collect(),
                     });
                     (
@@ -332,12 +335,6 @@ impl<'s> Lights<'s> {
             }
         }
     }
-}
-
-/// Uniform points on triangle `t` of mesh `mesh`.
-fn triangle(scene: &Scene, mesh: u32, t: usize) -> UniformTriangle {
-    let [a, b, c] = scene.geometry.meshes()[mesh as usize].corners(t);
-    UniformTriangle::new(a, b, c)
 }
 
 /// The triangle of mesh `mesh` a light vertex lies on, if any.
