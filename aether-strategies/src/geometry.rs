@@ -12,7 +12,7 @@ use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
-use crate::mesh::TriangleMesh;
+use crate::mesh::{TriangleMesh, TrianglePlane, triangle_normal};
 
 /// An analytic sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,8 +128,10 @@ pub fn offset_origin(p: Vec3, error: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
 pub struct Geometry {
     meshes: Vec<TriangleMesh>,
     spheres: Vec<Sphere>,
-    /// Triangles in BVH order, and where each came from.
+    /// Triangles in BVH order, their unit normals (found once, not at
+    /// every hit), and where each came from.
     triangles: Vec<[Vec3; 3]>,
+    normals: Vec<Vec3>,
     origins: Vec<(u32, u32)>,
     bvh: Option<CwBvh>,
 }
@@ -244,7 +246,7 @@ impl Geometry {
             }
         }
         let (triangles, origins, bvh) = if flat.is_empty() {
-            (Vec::new(), Vec::new(), None)
+            (Vec::<[Vec3; 3]>::new(), Vec::new(), None)
         } else {
             let tris: Vec<Triangle> = flat
                 .iter()
@@ -264,10 +266,12 @@ impl Geometry {
             let origins = order.iter().map(|&i| from[i as usize]).collect();
             (triangles, origins, Some(bvh))
         };
+        let normals = triangles.iter().map(|c| triangle_normal(*c)).collect();
         Geometry {
             meshes,
             spheres,
             triangles,
+            normals,
             origins,
             bvh,
         }
@@ -370,7 +374,7 @@ impl Geometry {
 
     fn triangle_hit(&self, id: usize, t: f32, b: [f32; 3]) -> Hit {
         let (m, tri) = self.origins[id];
-        self.on_triangle(m, tri, self.triangles[id], t, b)
+        self.on_triangle(m, tri, (self.triangles[id], self.normals[id]), t, b)
     }
 
     /// The surface point of triangle `triangle` of mesh `mesh` nearest to
@@ -378,18 +382,22 @@ impl Geometry {
     #[must_use]
     pub fn point_on_triangle(&self, mesh: u32, triangle: u32, position: Vec3) -> Hit {
         let corners = self.meshes[mesh as usize].corners(triangle as usize);
-        let [p0, p1, p2] = corners.map(Vec3::as_dvec3);
-        let (e1, e2, d) = (p1 - p0, p2 - p0, position.as_dvec3() - p0);
-        let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-        let (r1, r2) = (d.dot(e1), d.dot(e2));
-        let det = a * c - b * b;
-        let (b1, b2) = if det > 0.0 {
-            ((c * r1 - b * r2) / det, (a * r2 - b * r1) / det)
-        } else {
-            (0.0, 0.0)
-        };
-        let bary = [(1.0 - b1 - b2) as f32, b1 as f32, b2 as f32];
-        self.on_triangle(mesh, triangle, corners, 0.0, bary)
+        self.point_on_plane(mesh, triangle, &TrianglePlane::new(corners), position)
+    }
+
+    /// As [`point_on_triangle`](Self::point_on_triangle), with the
+    /// triangle's plane solved beforehand (a light's triangles, sampled at
+    /// every vertex of every path).
+    #[must_use]
+    pub fn point_on_plane(
+        &self,
+        mesh: u32,
+        triangle: u32,
+        plane: &TrianglePlane,
+        position: Vec3,
+    ) -> Hit {
+        let shape = (plane.corners(), plane.normal());
+        self.on_triangle(mesh, triangle, shape, 0.0, plane.barycentrics(position))
     }
 
     /// The surface point of sphere `sphere` in `direction` from its centre.
@@ -399,13 +407,14 @@ impl Geometry {
         self.sphere_hit(sphere as usize, s.center, direction.normalize(), s.radius)
     }
 
-    fn on_triangle(&self, m: u32, tri: u32, corners: [Vec3; 3], t: f32, b: [f32; 3]) -> Hit {
+    /// The surface point of barycentrics `b` on triangle `tri` of mesh `m`,
+    /// given its corners and unit normal.
+    fn on_triangle(&self, m: u32, tri: u32, shape: ([Vec3; 3], Vec3), t: f32, b: [f32; 3]) -> Hit {
         let mesh = &self.meshes[m as usize];
         let idx = mesh.triangles[tri as usize];
-        let [p0, p1, p2] = corners;
+        let ([p0, p1, p2], geometric_normal) = shape;
         let position = b[0] * p0 + b[1] * p1 + b[2] * p2;
         let error = gamma(7.0) * ((b[0] * p0).abs() + (b[1] * p1).abs() + (b[2] * p2).abs());
-        let geometric_normal = (p1 - p0).cross(p2 - p0).normalize_or_zero();
         let shading_normal = if mesh.normals.is_empty() {
             geometric_normal
         } else {

@@ -14,6 +14,7 @@ use glam::Vec3;
 
 use crate::camera::frame_of;
 use crate::geometry::Primitive;
+use crate::mesh::TrianglePlane;
 use crate::scene::{Emitter, Scene};
 use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
@@ -25,6 +26,7 @@ struct MeshLight {
     mesh: u32,
     triangles: DiscreteDistribution,
     pieces: Vec<UniformTriangle>,
+    planes: Vec<TrianglePlane>,
 }
 
 /// What an emitter is made of, for sampling.
@@ -92,6 +94,9 @@ impl<'s> Lights<'s> {
                                 let [a, b, c] = mesh.corners(t);
                                 UniformTriangle::new(a, b, c)
                             })
+                            .collect(),
+                        planes: (0..mesh.triangles.len())
+                            .map(|t| TrianglePlane::new(mesh.corners(t)))
                             .collect(),
                     });
                     (
@@ -300,7 +305,8 @@ impl<'s> Lights<'s> {
                 // The triangle is chosen by area and named by the vertex's site.
                 let m = light.mesh;
                 let on = move |t: usize| {
-                    let at = move |p| Some(SceneVertex::on_triangle(scene, m, t as u32, p));
+                    let plane = &light.planes[t];
+                    let at = move |p| Some(SceneVertex::on_plane(scene, m, t as u32, plane, p));
                     OnSurface::new(light.pieces[t], at)
                 };
                 let area = Select::new(&light.triangles, 2, on, move |v| triangle_of(v, m));

@@ -4,6 +4,7 @@ use aether_core::{Geometry as Place, RayCaster, Recycle, Vertex};
 use glam::{Vec2, Vec3};
 
 use crate::geometry::{Hit, Primitive, offset_origin};
+use crate::mesh::TrianglePlane;
 use crate::scene::Scene;
 
 /// What a vertex lies on.
@@ -121,6 +122,22 @@ impl SceneVertex {
     #[must_use]
     pub fn on_triangle(scene: &Scene, mesh: u32, triangle: u32, position: Vec3) -> Self {
         let hit = scene.geometry.point_on_triangle(mesh, triangle, position);
+        SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
+    }
+
+    /// As [`on_triangle`](Self::on_triangle), with the triangle's plane
+    /// solved beforehand.
+    #[must_use]
+    pub fn on_plane(
+        scene: &Scene,
+        mesh: u32,
+        triangle: u32,
+        plane: &TrianglePlane,
+        position: Vec3,
+    ) -> Self {
+        let hit = scene
+            .geometry
+            .point_on_plane(mesh, triangle, plane, position);
         SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
     }
 

@@ -2,6 +2,7 @@
 //! `.serialized` format.
 
 mod obj;
+mod plane;
 mod serialized;
 
 use std::fmt;
@@ -10,6 +11,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Vec2, Vec3};
 
 pub use obj::{ObjMaterial, load_obj, load_obj_with_materials};
+pub use plane::{TrianglePlane, triangle_normal};
 pub use serialized::{load_serialized, serialized_mesh_count};
 
 /// A triangle mesh in world or object space.
