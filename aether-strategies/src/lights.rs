@@ -29,6 +29,13 @@ struct MeshLight {
     planes: Vec<TrianglePlane>,
 }
 
+impl MeshLight {
+    /// The light vertex at `position`, sampled on triangle `t`.
+    fn vertex(&self, scene: &Scene, t: usize, position: Vec3) -> SceneVertex {
+        SceneVertex::on_plane(scene, self.mesh, t as u32, &self.planes[t], position)
+    }
+}
+
 /// What an emitter is made of, for sampling.
 #[derive(Debug)]
 enum Source {
@@ -305,8 +312,7 @@ impl<'s> Lights<'s> {
                 // The triangle is chosen by area and named by the vertex's site.
                 let m = light.mesh;
                 let on = move |t: usize| {
-                    let plane = &light.planes[t];
-                    let at = move |p| Some(SceneVertex::on_plane(scene, m, t as u32, plane, p));
+                    let at = move |p| Some(light.vertex(scene, t, p));
                     OnSurface::new(light.pieces[t], at)
                 };
                 let area = Select::new(&light.triangles, 2, on, move |v| triangle_of(v, m));
