@@ -14,7 +14,7 @@ use glam::Vec3;
 
 use crate::camera::frame_of;
 use crate::geometry::Primitive;
-use crate::mesh::TrianglePlane;
+use crate::mesh::{TriangleMesh, TrianglePlane};
 use crate::scene::{Emitter, Scene};
 use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
@@ -30,6 +30,30 @@ struct MeshLight {
 }
 
 impl MeshLight {
+    /// The light of mesh `index` of the geometry, and its total area: one
+    /// pass over its triangles.
+    fn new(index: u32, mesh: &TriangleMesh) -> (Self, f64) {
+        let count = mesh.triangles.len();
+        let (mut areas, mut pieces, mut planes) = (Vec::new(), Vec::new(), Vec::new());
+        for t in 0..count {
+            let corners = mesh.corners(t);
+            let [a, b, c] = corners;
+            areas.push(mesh.triangle_area(t));
+            pieces.push(UniformTriangle::new(a, b, c));
+            planes.push(TrianglePlane::new(corners));
+        }
+        // A mesh without area emits nothing: power zero, never chosen.
+        let triangles = DiscreteDistribution::new(&areas)
+            .unwrap_or_else(|_| DiscreteDistribution::new(&[1.0]).expect("one weight"));
+        let light = MeshLight {
+            mesh: index,
+            triangles,
+            pieces,
+            planes,
+        };
+        (light, areas.iter().sum())
+    }
+
     /// The light vertex at `position`, sampled on triangle `t`.
     fn vertex(&self, scene: &Scene, t: usize, position: Vec3) -> SceneVertex {
         SceneVertex::on_plane(scene, self.mesh, t as u32, &self.planes[t], position)
@@ -86,30 +110,9 @@ impl<'s> Lights<'s> {
         for (i, e) in scene.emitters.iter().enumerate() {
             let (p, source) = match e {
                 Emitter::Area { radiance, shape } if *shape < meshes.len() => {
-                    let mesh = &meshes[*shape];
-                    let areas: Vec<f64> = (0..mesh.triangles.len())
-                        .map(|t| mesh.triangle_area(t))
-                        .collect();
-                    // A mesh without area emits nothing: power zero, never chosen.
-                    let triangles = DiscreteDistribution::new(&areas)
-                        .unwrap_or_else(|_| DiscreteDistribution::new(&[1.0]).expect("one weight"));
-                    let source = Source::Mesh(MeshLight {
-                        mesh: *shape as u32,
-                        triangles,
-                        pieces: (0..mesh.triangles.len())
-                            .map(|t| {
-                                let [a, b, c] = mesh.corners(t);
-                                UniformTriangle::new(a, b, c)
-                            })
-                            .collect(),
-                        planes: (0..mesh.triangles.len())
-                            .map(|t| TrianglePlane::new(mesh.corners(t)))
-                            .collect(),
-                    });
-                    (
-                        luminance(*radiance) * std::f64::consts::PI * mesh.area(),
-                        source,
-                    )
+                    let (light, area) = MeshLight::new(*shape as u32, &meshes[*shape]);
+                    let power = luminance(*radiance) * std::f64::consts::PI * area;
+                    (power, Source::Mesh(light))
                 }
                 Emitter::Area { radiance, shape } => {
                     let sphere = (*shape - meshes.len()) as u32;
