@@ -192,6 +192,18 @@ where
     }
     fn density(&self, v: &D::Value) -> Density {
         let choice = self.choice.borrow();
+        // One branch (a diffuse or a rough metal's single lobe) is a sum of
+        // one term: the general loop and its sum cost 64 of the 865
+        // instructions of a density of BSDF sampling (callgrind).
+        if choice.len() == 1 {
+            let d = Density::discrete(choice.probability(0)) * (self.branch)(0).density(v);
+            // What the sum below gives: nothing, in counting measure.
+            return if d.is_zero() {
+                Density::zero(Measure::Discrete)
+            } else {
+                d
+            };
+        }
         (0..choice.len())
             .filter(|&i| choice.probability(i) > 0.0)
             .map(|i| Density::discrete(choice.probability(i)) * (self.branch)(i).density(v))

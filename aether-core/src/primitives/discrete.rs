@@ -43,7 +43,9 @@ impl std::error::Error for DiscreteError {}
 /// Sampling is a binary search over the CDF (O(log n)); the probability of a
 /// known outcome is a table lookup (O(1)), so that the density of a light or
 /// a triangle that a vertex lies on is looked up, never enumerated. Up to
-/// four outcomes are stored inline (lobe choices allocate nothing).
+/// two outcomes are stored inline: lobe choices, built at every scattering
+/// event, allocate nothing and stay small to move (a light's or a
+/// texture's table, built once per scene, lives on the heap).
 ///
 /// Density: the probability of the outcome, in counting measure.
 ///
@@ -56,8 +58,8 @@ impl std::error::Error for DiscreteError {}
 #[derive(Clone, Debug, PartialEq)]
 pub struct DiscreteDistribution {
     /// cdf[i] = P(outcome < i); cdf[n] = 1.
-    cdf: SmallVec<[f64; 5]>,
-    pmf: SmallVec<[f64; 4]>,
+    cdf: SmallVec<[f64; 3]>,
+    pmf: SmallVec<[f64; 2]>,
 }
 
 impl DiscreteDistribution {
@@ -82,12 +84,12 @@ impl DiscreteDistribution {
         if n == 1 {
             // w / w: a certain outcome (most lobe choices).
             return Ok(DiscreteDistribution {
-                cdf: SmallVec::from_buf_and_len([0.0, 1.0, 0.0, 0.0, 0.0], 2),
-                pmf: SmallVec::from_buf_and_len([1.0, 0.0, 0.0, 0.0], 1),
+                cdf: SmallVec::from_buf_and_len([0.0, 1.0, 0.0], 2),
+                pmf: SmallVec::from_buf_and_len([1.0, 0.0], 1),
             });
         }
-        let mut pmf: SmallVec<[f64; 4]> = SmallVec::from_elem(0.0, n);
-        let mut cdf: SmallVec<[f64; 5]> = SmallVec::from_elem(0.0, n + 1);
+        let mut pmf: SmallVec<[f64; 2]> = SmallVec::from_elem(0.0, n);
+        let mut cdf: SmallVec<[f64; 3]> = SmallVec::from_elem(0.0, n + 1);
         let mut acc = 0.0;
         for (i, w) in weights.iter().enumerate() {
             pmf[i] = w / total;

@@ -11,7 +11,6 @@ use aether_core::primitives::{
 };
 use aether_core::{Density, Distribution, Either, Mixture, Sample, Uniforms};
 use glam::Vec3;
-use smallvec::SmallVec;
 
 use super::Transport;
 use super::fresnel::fresnel_dielectric;
@@ -73,7 +72,10 @@ fn transmit(given: Vec3, eta: f32, mode: Transport) -> Option<Lobe> {
 #[derive(Debug)]
 pub struct Lobes {
     choice: DiscreteDistribution,
-    lobes: SmallVec<[Lobe; 2]>,
+    /// As many lobes as `choice` has outcomes (a single lobe is repeated):
+    /// an array rather than a list, so that a density is no spill check
+    /// away from its lobe.
+    lobes: [Lobe; 2],
 }
 
 impl Lobes {
@@ -84,11 +86,11 @@ impl Lobes {
     pub fn of(material: &Material, given: Vec3, eta: f32, mode: Transport) -> Lobes {
         let single = |lobe| Lobes {
             choice: DiscreteDistribution::new(&[1.0]).expect("one weight"),
-            lobes: SmallVec::from_slice(&[lobe]),
+            lobes: [lobe; 2],
         };
         let pair = |p: f64, a, b| Lobes {
             choice: DiscreteDistribution::new(&[p, 1.0 - p]).expect("positive"),
-            lobes: SmallVec::from_slice(&[a, b]),
+            lobes: [a, b],
         };
         match material {
             Material::Diffuse { .. } => single(diffuse()),
@@ -147,6 +149,6 @@ impl Distribution for Lobes {
         self.mixture().invert(w)
     }
     fn has_overlapping_branches(&self) -> bool {
-        self.lobes.len() > 1
+        self.choice.len() > 1
     }
 }
