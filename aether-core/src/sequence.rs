@@ -109,20 +109,20 @@ impl FactorKey {
         }
     }
 
+    /// The words folded in two multiplications: factor lookups hash on
+    /// every MIS weight, and a multiplication per word chained eight
+    /// multiplications. Ids differ in their low bits, so the high half of
+    /// each product is folded into the low bits that index the table.
     pub(crate) fn hash64(&self) -> u64 {
-        let mut h = 0xcbf2_9ce4_8422_2325u64;
-        for w in [
-            self.strategy as u64,
-            self.kind.0.len() as u64,
-            u64::from(self.depth),
-            self.instance,
-            self.targets[0],
-            self.targets[1],
-            self.cond[0],
-            self.cond[1],
-        ] {
-            h = (h ^ w).wrapping_mul(0x0000_0100_0000_01b3).rotate_left(29);
-        }
+        let a = self.targets[0]
+            ^ self.cond[1].rotate_left(32)
+            ^ (u64::from(self.depth) << 56)
+            ^ (self.kind.0.len() as u64) << 44;
+        let b = self.cond[0]
+            ^ self.targets[1].rotate_left(32)
+            ^ (self.strategy as u64).rotate_left(17)
+            ^ self.instance.rotate_left(7);
+        let h = (a.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ b).wrapping_mul(0xbf58_476d_1ce4_e5b9);
         h ^ (h >> 31)
     }
 }
@@ -942,11 +942,15 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
         let end = span.start + span.arity;
         let mut targets = [0u64; 2];
-        for (t, slot) in targets.iter_mut().zip(&self.slots[span.start..end]) {
-            *t = slot.id;
-        }
-        if span.reversed {
-            targets[..span.arity].reverse();
+        if span.arity == 1 {
+            targets[0] = self.slots[span.start].id;
+        } else {
+            for (t, slot) in targets.iter_mut().zip(&self.slots[span.start..end]) {
+                *t = slot.id;
+            }
+            if span.reversed {
+                targets[..span.arity].reverse();
+            }
         }
         let mut cond = [0u64; 2];
         let prefix_len = if span.reversed {
@@ -986,9 +990,14 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 Density::zero(Measure::Area)
             };
         };
-        let first = (span.start..end)
-            .find(|&k| self.slots[k].part == 0)
-            .unwrap_or(span.start);
+        // A step's recorded density sits on its first vertex in sampling
+        // order, which for a one-vertex step (nearly every factor) is it.
+        let first = match span.arity {
+            1 => span.start,
+            _ => (span.start..end)
+                .find(|&k| self.slots[k].part == 0)
+                .unwrap_or(span.start),
+        };
         // Borrowed, not copied: in BDPT the copy was a quarter of this
         // function's own instructions.
         let recorded = self.slots[first].recorded.as_ref();
