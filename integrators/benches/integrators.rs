@@ -7,9 +7,14 @@
 //! Printed as a table and written as CSV (`target/bench/integrators.csv`).
 //!
 //! `cargo bench -p integrators`. Set `AETHER_BENCH_SIZE` for another film
-//! width (default 128) and `AETHER_BENCH_SPP` for another number of
-//! samples per pixel (default 4).
+//! width (default 128), `AETHER_BENCH_SPP` for another number of samples
+//! per pixel (default 4) and `AETHER_BENCH_RUNS` for another number of runs
+//! (default 3).
 //!
+//! - Throughput: the median of the runs, taken in turn on all cores and on
+//!   one (all, one, all, one, ...), so that a burst of load from another
+//!   process on a shared machine moves one run of each, not a whole column;
+//!   BDPT's depth ratio alternates the two depths the same way.
 //! - Ray share: every ray is timed in a separate render (timing costs a
 //!   few percent, so the throughput columns come from an untimed render),
 //!   and the time summed over threads is divided by threads × wall time.
@@ -69,8 +74,43 @@ struct Row {
     one_thread: f64,
 }
 
-fn measure(scene: &mut Scene, integrator: &str, spp: u32) -> Result<Row, String> {
-    let all = run(scene, integrator, spp, None)?;
+/// The middle value (the mean of the two middle ones for an even count).
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    match n {
+        0 => f64::NAN,
+        _ if n % 2 == 1 => values[n / 2],
+        _ => 0.5 * (values[n / 2 - 1] + values[n / 2]),
+    }
+}
+
+/// Samples/s and rays/s on all cores, and samples/s on one: medians of
+/// `runs` runs of each, alternating. Also the heap allocations and samples
+/// of the first one-thread run.
+fn throughput(
+    scene: &mut Scene,
+    integrator: &str,
+    spp: u32,
+    runs: u32,
+) -> Result<([f64; 3], (usize, u64)), String> {
+    let mut rates: [Vec<f64>; 3] = Default::default();
+    let mut first = None;
+    for _ in 0..runs.max(1) {
+        let all = run(scene, integrator, spp, None)?;
+        rates[0].push(all.samples as f64 / all.seconds);
+        rates[1].push(all.rays as f64 / all.seconds);
+        let region = Region::new(GLOBAL);
+        let one = run(scene, integrator, spp, Some(1))?;
+        first.get_or_insert((region.change().allocations, one.samples));
+        rates[2].push(one.samples as f64 / one.seconds);
+    }
+    Ok((rates.map(median), first.unwrap_or_default()))
+}
+
+fn measure(scene: &mut Scene, integrator: &str, spp: u32, runs: u32) -> Result<Row, String> {
+    let ([samples_per_second, rays_per_second, one_thread], (allocations, samples)) =
+        throughput(scene, integrator, spp, runs)?;
     time_rays(true);
     let timed = run(scene, integrator, spp, None);
     time_rays(false);
@@ -79,24 +119,27 @@ fn measure(scene: &mut Scene, integrator: &str, spp: u32) -> Result<Row, String>
     let small = Region::new(GLOBAL);
     let one_spp = run(scene, integrator, 1, Some(1))?;
     let small = small.change().allocations;
-    let region = Region::new(GLOBAL);
-    let one = run(scene, integrator, spp, Some(1))?;
-    let allocations = region.change().allocations;
     Ok(Row {
-        samples_per_second: all.samples as f64 / all.seconds,
-        rays_per_second: all.rays as f64 / all.seconds,
+        samples_per_second,
+        rays_per_second,
         ray_share: timed.ray_seconds / (threads * timed.seconds),
         // Fixed costs vary by an allocation or two: no negative rates.
         allocations_per_sample: ((allocations as f64 - small as f64)
-            / (one.samples as f64 - one_spp.samples as f64).max(1.0))
+            / (samples as f64 - one_spp.samples as f64).max(1.0))
         .max(0.0),
-        one_thread: one.samples as f64 / one.seconds,
+        one_thread,
     })
 }
 
-fn table(label: &str, scene: &mut Scene, spp: u32, integrators: &[&str], csv: &mut String) {
+fn table(
+    label: &str,
+    scene: &mut Scene,
+    (spp, runs): (u32, u32),
+    integrators: &[&str],
+    csv: &mut String,
+) {
     println!(
-        "\n{label} ({}×{}, {spp} spp, max depth {})",
+        "\n{label} ({}×{}, {spp} spp, max depth {}, medians of {runs} runs)",
         scene.film.width, scene.film.height, scene.integrator.max_depth
     );
     println!(
@@ -104,7 +147,7 @@ fn table(label: &str, scene: &mut Scene, spp: u32, integrators: &[&str], csv: &m
         "", "samples/s", "Mrays/s", "ray share", "allocs/spl", "1-thread smp/s", "scaling"
     );
     for name in integrators {
-        match measure(scene, name, spp) {
+        match measure(scene, name, spp, runs) {
             Ok(r) => {
                 println!(
                     "{name:<8} {:>12.0} {:>9.2} {:>9.0}% {:>12.3} {:>14.0} {:>7.2}×",
@@ -153,6 +196,7 @@ fn shared(file: &str, width: u32) -> Result<Scene, String> {
 fn main() {
     let size = env_or("AETHER_BENCH_SIZE", 128);
     let spp = env_or("AETHER_BENCH_SPP", 4);
+    let runs = env_or("AETHER_BENCH_RUNS", 3).max(1);
     let mut csv = String::from(
         "scene,integrator,width,height,spp,samples_per_second,rays_per_second,ray_share,allocations_per_sample,one_thread_samples_per_second,scaling\n",
     );
@@ -160,7 +204,13 @@ fn main() {
         "direct", "path", "light", "bdpt", "tridir", "gpt", "mlt", "pssmlt", "mmlt",
     ];
     let mut cbox = cornell_box(size, size, spp);
-    table("built-in Cornell box", &mut cbox, spp, &all, &mut csv);
+    table(
+        "built-in Cornell box",
+        &mut cbox,
+        (spp, runs),
+        &all,
+        &mut csv,
+    );
     let others = [
         ("cbox-sphere", "cbox-sphere/cbox-sphere-path.xml"),
         ("Veach's bidirectional scene", "veach_bidir/bidir-bdpt.xml"),
@@ -168,18 +218,22 @@ fn main() {
     ];
     for (label, file) in others {
         match shared(file, size) {
-            Ok(mut scene) => table(label, &mut scene, spp, &all, &mut csv),
+            Ok(mut scene) => table(label, &mut scene, (spp, runs), &all, &mut csv),
             Err(e) => println!("\n{label} skipped: {e}"),
         }
     }
 
-    let mut seconds = [0.0; 2];
-    for (i, depth) in [8, 16].into_iter().enumerate() {
-        cbox.integrator.max_depth = depth;
-        seconds[i] = run(&mut cbox, "bdpt", spp, None).map_or(f64::NAN, |r| r.seconds);
+    let mut times: [Vec<f64>; 2] = Default::default();
+    for _ in 0..runs {
+        for (i, depth) in [8, 16].into_iter().enumerate() {
+            cbox.integrator.max_depth = depth;
+            times[i].push(run(&mut cbox, "bdpt", spp, None).map_or(f64::NAN, |r| r.seconds));
+        }
     }
+    let seconds = times.map(median);
     println!(
-        "\nBDPT on the Cornell box, max depth 16 over max depth 8: {:.2} s / {:.2} s = {:.2}",
+        "\nBDPT on the Cornell box, max depth 16 over max depth 8 (medians of {runs}): \
+         {:.2} s / {:.2} s = {:.2}",
         seconds[1],
         seconds[0],
         seconds[1] / seconds[0]
