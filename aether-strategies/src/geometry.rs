@@ -1,18 +1,17 @@
-//! Ray casting: a compressed wide BVH (obvhs) over every triangle, analytic
-//! spheres beside it, a watertight triangle test, and ray origins offset by
-//! the rounding error of the hit point (no fixed epsilon).
+//! Ray casting: a compressed wide BVH (obvhs, built in `bvh`) over every
+//! triangle, analytic spheres beside it (a few) or in it (more), the
+//! watertight triangle test, and ray origins offset by the rounding error
+//! of the hit point (no fixed epsilon).
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use glam::{DVec3, Vec2, Vec3, Vec3A, Vec3Swizzles};
-use obvhs::BvhBuildParams;
+use glam::{DVec3, Vec2, Vec3};
 use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle;
 
 use crate::mesh::{TriangleMesh, TrianglePlane, triangle_normal};
+use crate::watertight::{Edges, Shear};
 
 /// An analytic sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,32 +127,30 @@ pub fn offset_origin(p: Vec3, error: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
 pub struct Geometry {
     meshes: Vec<TriangleMesh>,
     spheres: Vec<Sphere>,
-    /// Triangles in BVH order (a large one split by the build appears once
-    /// per piece), their unit normals (found once, not at every hit), and
-    /// where each came from.
+    /// The BVH's primitives in its order: triangles (a large one split by
+    /// the build appears once per piece) with their unit normals (found
+    /// once, not at every hit), and spheres, whose corners are NaN (a test
+    /// the triangle test never passes) and normals zero; and where each
+    /// came from: (mesh, triangle), or ([`SPHERE`], sphere).
     triangles: Vec<[Vec3; 3]>,
     normals: Vec<Vec3>,
     origins: Vec<(u32, u32)>,
     bvh: Option<CwBvh>,
+    /// True if the spheres are few enough to be tested one by one beside
+    /// the tree rather than in it.
+    spheres_listed: bool,
 }
 
-/// Scenes up to this many triangles get obvhs's slowest, best BVH build.
-const BEST_BUILD_LIMIT: usize = 1 << 20;
+/// The mesh index of a sphere in [`Geometry`]'s BVH order.
+const SPHERE: u32 = u32::MAX;
 
-/// How the BVH of `triangles` triangles is built. The slowest build
-/// (large triangles split into several boxes, every node considered for
-/// reinsertion) casts the Cornell box's rays with 4.5 % fewer instructions
-/// per path-traced sample than obvhs's medium build, whose trees overlap
-/// more, but takes about three times as long: 3 s instead of 1 s for a
-/// million triangles on two cores. Larger scenes keep the medium build, so
-/// that a big scene starts rendering in seconds.
-fn build_params(triangles: usize) -> BvhBuildParams {
-    if triangles <= BEST_BUILD_LIMIT {
-        BvhBuildParams::very_slow_build()
-    } else {
-        BvhBuildParams::medium_build()
-    }
-}
+/// Up to this many spheres are tested one by one beside the tree: a
+/// handful of sphere tests costs less than the check that tells a sphere
+/// from a triangle at every candidate of every ray (on SmallVCM's box, with
+/// two spheres, the tree with them took 0.7 % more instructions for BDPT,
+/// and a scene without spheres 0.8 % more for path tracing, when every
+/// tree carried the check).
+const LISTED_SPHERES: usize = 8;
 
 /// An obvhs ray. Negative zeros in the direction become positive: obvhs
 /// takes the sign of a slab from `direction < 0` but its inverse from the
@@ -162,98 +159,9 @@ fn bvh_ray(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
     Ray::new(origin.into(), (dir + Vec3::ZERO).into(), 0.0, t_max)
 }
 
-/// The per-ray setup of the watertight test (Woop, Benthin and Wald 2013).
-struct Shear {
-    origin: Vec3,
-    /// Which of the six axis orders (kx, ky, kz) the ray uses: kz the
-    /// dominant axis of the direction, kx and ky swapped where it is negative.
-    order: u8,
-    s: Vec3,
-}
-
-impl Shear {
-    fn new(origin: Vec3, dir: Vec3) -> Self {
-        let a = dir.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z { 0 } else { 2 }
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        let flip = dir[kz] < 0.0;
-        if flip {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        Shear {
-            origin,
-            order: 2 * kz as u8 + u8::from(flip),
-            s: Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]),
-        }
-    }
-
-    /// (p[kx], p[ky], p[kz]) by swizzles: indexing a vector by a variable
-    /// costs more than the rest of the test.
-    #[inline]
-    fn permute(&self, p: Vec3) -> Vec3 {
-        match self.order {
-            0 => p.yzx(),
-            1 => p.zyx(),
-            2 => p.zxy(),
-            3 => p.xzy(),
-            4 => p,
-            _ => p.yxz(),
-        }
-    }
-
-    /// Distance and edge functions of the hit, if any, in (t_min, t_max).
-    #[inline]
-    fn intersect(&self, v: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, Edges)> {
-        let rel = v.map(|p| self.permute(p - self.origin));
-        let xy = rel.map(|p| (p.x - self.s.x * p.z, p.y - self.s.y * p.z));
-        let (a, b, c) = (xy[0], xy[1], xy[2]);
-        let mut u = c.0 * b.1 - c.1 * b.0;
-        let mut w2 = a.0 * c.1 - a.1 * c.0;
-        let mut w = b.0 * a.1 - b.1 * a.0;
-        if u == 0.0 || w2 == 0.0 || w == 0.0 {
-            // Edges through the ray: decide in double precision.
-            let d = xy.map(|(x, y)| (f64::from(x), f64::from(y)));
-            u = (d[2].0 * d[1].1 - d[2].1 * d[1].0) as f32;
-            w2 = (d[0].0 * d[2].1 - d[0].1 * d[2].0) as f32;
-            w = (d[1].0 * d[0].1 - d[1].1 * d[0].0) as f32;
-        }
-        if (u < 0.0 || w2 < 0.0 || w < 0.0) && (u > 0.0 || w2 > 0.0 || w > 0.0) {
-            return None;
-        }
-        let det = u + w2 + w;
-        if det == 0.0 {
-            return None;
-        }
-        let z = rel.map(|p| self.s.z * p.z);
-        let t_scaled = u * z[0] + w2 * z[1] + w * z[2];
-        let t = t_scaled / det;
-        (t > t_min && t < t_max).then_some((t, Edges([u, w2, w], det)))
-    }
-}
-
-/// The three edge functions of a hit and their sum: barycentrics once
-/// divided, which only the closest hit of a ray needs (a closest-hit ray
-/// meets several candidates; each still divides once for its distance,
-/// and the three divisions here wait for the one kept).
-#[derive(Clone, Copy)]
-struct Edges([f32; 3], f32);
-
-impl Edges {
-    fn barycentrics(self) -> [f32; 3] {
-        let Edges([u, w2, w], det) = self;
-        [u / det, w2 / det, w / det]
-    }
-}
-
 impl Geometry {
-    /// Builds the BVH over the triangles of `meshes` (already in world space).
+    /// Builds the BVH over the triangles of `meshes` (already in world
+    /// space) and the spheres.
     #[must_use]
     pub fn new(meshes: Vec<TriangleMesh>, spheres: Vec<Sphere>) -> Self {
         let mut flat = Vec::new();
@@ -264,25 +172,25 @@ impl Geometry {
                 from.push((m as u32, t as u32));
             }
         }
-        let (triangles, origins, bvh) = if flat.is_empty() {
-            (Vec::<[Vec3; 3]>::new(), Vec::new(), None)
+        let spheres_listed = spheres.len() <= LISTED_SPHERES;
+        let in_tree = if spheres_listed {
+            &[][..]
         } else {
-            let tris: Vec<Triangle> = flat
-                .iter()
-                .map(|[a, b, c]| Triangle {
-                    v0: Vec3A::from(*a),
-                    v1: Vec3A::from(*b),
-                    v2: Vec3A::from(*c),
-                })
-                .collect();
-            let bvh =
-                build_cwbvh_from_tris(&tris, build_params(tris.len()), &mut Duration::default());
-            let order = &bvh.primitive_indices;
-            let triangles = order.iter().map(|&i| flat[i as usize]).collect();
-            let origins = order.iter().map(|&i| from[i as usize]).collect();
-            (triangles, origins, Some(bvh))
+            &spheres[..]
         };
-        let normals = triangles.iter().map(|c| triangle_normal(*c)).collect();
+        let bvh = crate::bvh::build(&flat, in_tree);
+        let order = bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices[..]);
+        let primitive = |i: u32| match flat.get(i as usize) {
+            Some(&corners) => (corners, triangle_normal(corners), from[i as usize]),
+            None => ([Vec3::NAN; 3], Vec3::ZERO, (SPHERE, i - flat.len() as u32)),
+        };
+        let (mut triangles, mut normals, mut origins) = (Vec::new(), Vec::new(), Vec::new());
+        for &i in order {
+            let (corners, normal, origin) = primitive(i);
+            triangles.push(corners);
+            normals.push(normal);
+            origins.push(origin);
+        }
         Geometry {
             meshes,
             spheres,
@@ -290,6 +198,7 @@ impl Geometry {
             normals,
             origins,
             bvh,
+            spheres_listed,
         }
     }
 
@@ -317,6 +226,9 @@ impl Geometry {
     #[must_use]
     pub fn intersect(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
         let _timer = RayTimer::start();
+        if !self.spheres_listed {
+            return self.intersect_tree_with_spheres(origin, dir, t_max);
+        }
         let shear = Shear::new(origin, dir);
         let mut best: Option<(f32, usize, [f32; 3])> = None;
         if let Some(bvh) = &self.bvh {
@@ -351,11 +263,58 @@ impl Geometry {
         best.map(|(t, id, bary)| self.triangle_hit(id, t, bary))
     }
 
+    /// As [`intersect`](Self::intersect) when the spheres are in the tree
+    /// (NaN corners mark them among the triangles). Kept apart so that the
+    /// usual case, few or no spheres, runs the triangle test without the
+    /// check at every candidate (and out of line, so that it does not
+    /// change how that case compiles).
+    #[inline(never)]
+    fn intersect_tree_with_spheres(&self, origin: Vec3, dir: Vec3, t_max: f32) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        let shear = Shear::new(origin, dir);
+        let mut hit = RayHit::none();
+        let mut edges = Edges([0.0; 3], 1.0);
+        bvh.ray_traverse(bvh_ray(origin, dir, t_max), &mut hit, |r, id| {
+            let corners = &self.triangles[id];
+            if corners[0].x.is_nan() {
+                return self.sphere_distance(id, origin, dir, r.tmax);
+            }
+            match shear.intersect(corners, 0.0, r.tmax) {
+                Some((t, e)) => {
+                    edges = e;
+                    t
+                }
+                None => f32::INFINITY,
+            }
+        });
+        if hit.t >= t_max {
+            return None;
+        }
+        let id = hit.primitive_id as usize;
+        Some(match self.origins[id] {
+            (SPHERE, k) => self.sphere_hit(k as usize, origin, dir, hit.t),
+            _ => self.triangle_hit(id, hit.t, edges.barycentrics()),
+        })
+    }
+
+    /// The distance to the sphere at BVH position `id` along the ray, if
+    /// it meets it before `t_max`, else infinity.
+    fn sphere_distance(&self, id: usize, origin: Vec3, dir: Vec3, t_max: f32) -> f32 {
+        match self.origins[id] {
+            (SPHERE, k) => intersect_sphere(&self.spheres[k as usize], origin, dir, 0.0, t_max)
+                .unwrap_or(f32::INFINITY),
+            _ => f32::INFINITY,
+        }
+    }
+
     /// True if anything lies on the ray from `origin` along unit `dir` with
     /// t ∈ (0, `t_max`). Stops at the first hit found.
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let _timer = RayTimer::start();
+        if !self.spheres_listed {
+            return self.tree_with_spheres_blocks(origin, dir, t_max);
+        }
         if self
             .spheres
             .iter()
@@ -369,6 +328,22 @@ impl Geometry {
         !bvh.ray_traverse_miss(ray, |r, id| {
             shear
                 .intersect(&self.triangles[id], 0.0, r.tmax)
+                .map_or(f32::INFINITY, |h| h.0)
+        })
+    }
+
+    /// As [`occluded`](Self::occluded) when the spheres are in the tree.
+    #[inline(never)]
+    fn tree_with_spheres_blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+        let Some(bvh) = &self.bvh else { return false };
+        let shear = Shear::new(origin, dir);
+        !bvh.ray_traverse_miss(bvh_ray(origin, dir, t_max), |r, id| {
+            let corners = &self.triangles[id];
+            if corners[0].x.is_nan() {
+                return self.sphere_distance(id, origin, dir, r.tmax);
+            }
+            shear
+                .intersect(corners, 0.0, r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
         })
     }
@@ -537,6 +512,48 @@ mod tests {
         assert!((s.t - 1.5).abs() < 1e-5);
         assert!(g.occluded(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 2.0));
         assert!(!g.occluded(Vec3::new(0.0, 0.0, 1.0), -Vec3::Z, 0.5));
+    }
+
+    #[test]
+    fn spheres_in_the_tree_are_found_as_by_testing_them_all() {
+        // A grid of spheres above a quad: every ray's closest hit and its
+        // occlusion agree with a test of every primitive, sphere by sphere.
+        let spheres: Vec<Sphere> = (0..64)
+            .map(|i| Sphere {
+                center: Vec3::new((i % 8) as f32 * 0.3 - 1.0, (i / 8) as f32 * 0.3 - 1.0, 0.5),
+                radius: 0.05 + 0.01 * (i % 5) as f32,
+            })
+            .collect();
+        let g = Geometry::new(vec![quad()], spheres.clone());
+        let mut rng = aether_core::Pcg32::new(7, 1);
+        let mut sphere_hits = 0;
+        for _ in 0..4000 {
+            let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+            let origin = Vec3::new(2.0 * u() - 1.0, 2.0 * u() - 1.0, 2.0);
+            let dir = Vec3::new(0.6 * u() - 0.3, 0.6 * u() - 0.3, -1.0).normalize();
+            let nearest_sphere = spheres
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| {
+                    intersect_sphere(s, origin, dir, 0.0, f32::INFINITY).map(|t| (t, k))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let hit = g.intersect(origin, dir, f32::INFINITY);
+            match (nearest_sphere, hit) {
+                (Some((t, k)), Some(h)) if h.t >= t => {
+                    assert_eq!(h.primitive, Primitive::Sphere(k as u32));
+                    assert_eq!(h.t, t);
+                    sphere_hits += 1;
+                }
+                (_, Some(h)) => assert!(matches!(h.primitive, Primitive::Triangle { .. })),
+                (None, None) => {}
+                (Some(_), None) => panic!("a sphere the tree missed from {origin} along {dir}"),
+            }
+            let limit = hit.map_or(10.0, |h| h.t);
+            assert!(g.occluded(origin, dir, limit * 1.001) == hit.is_some());
+            assert!(!g.occluded(origin, dir, limit * 0.999));
+        }
+        assert!(sphere_hits > 200, "{sphere_hits} rays met a sphere");
     }
 
     #[test]

@@ -8,6 +8,7 @@
 
 pub mod bitmap;
 pub mod bsdf;
+mod bvh;
 pub mod camera;
 pub mod files;
 pub mod geometry;
@@ -21,5 +22,6 @@ pub mod scene;
 pub mod spectrum;
 pub mod subpath;
 pub mod vertex;
+mod watertight;
 
 pub use aether_core as core;
