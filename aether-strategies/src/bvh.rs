@@ -111,6 +111,42 @@ mod tests {
     }
 
     #[test]
+    fn triangles_alone_get_obvhs_own_tree() {
+        // The steps are obvhs's triangle builder's: the same tree for the
+        // same triangles, large ones split as there.
+        let mut rng = aether_core::Pcg32::new(3, 1);
+        let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+        let triangles: Vec<[Vec3; 3]> = (0..200)
+            .map(|i| {
+                let a = Vec3::new(u(), u(), u()) * 4.0;
+                let size = if i % 17 == 0 { 6.0 } else { 0.5 };
+                [
+                    a,
+                    a + Vec3::new(u(), u(), u()) * size,
+                    a + Vec3::new(u(), u(), u()),
+                ]
+            })
+            .collect();
+        let ours = build(&triangles, &[]).expect("a tree");
+        let tris: Vec<Triangle> = triangles
+            .iter()
+            .map(|[a, b, c]| Triangle {
+                v0: (*a).into(),
+                v1: (*b).into(),
+                v2: (*c).into(),
+            })
+            .collect();
+        let theirs = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+            &tris,
+            build_params(tris.len()),
+            &mut std::time::Duration::default(),
+        );
+        assert!(ours.primitive_indices.len() > triangles.len(), "no split");
+        assert_eq!(ours.primitive_indices, theirs.primitive_indices);
+        assert_eq!(ours.nodes.len(), theirs.nodes.len());
+    }
+
+    #[test]
     fn every_triangle_and_sphere_is_in_the_tree() {
         let triangles = [
             [Vec3::ZERO, Vec3::X, Vec3::Y],
