@@ -275,13 +275,9 @@ impl Geometry {
         let mut hit = RayHit::none();
         let mut edges = Edges([0.0; 3], 1.0);
         bvh.ray_traverse(bvh_ray(origin, dir, t_max), &mut hit, |r, id| {
-            let corners = &self.triangles[id];
-            if corners[0].x.is_nan() {
-                return self.sphere_distance(id, origin, dir, r.tmax);
-            }
-            match shear.intersect(corners, 0.0, r.tmax) {
+            match self.tree_candidate(&shear, id, (origin, dir), r.tmax) {
                 Some((t, e)) => {
-                    edges = e;
+                    edges = e.unwrap_or(edges);
                     t
                 }
                 None => f32::INFINITY,
@@ -297,13 +293,27 @@ impl Geometry {
         })
     }
 
-    /// The distance to the sphere at BVH position `id` along the ray, if
-    /// it meets it before `t_max`, else infinity.
-    fn sphere_distance(&self, id: usize, origin: Vec3, dir: Vec3, t_max: f32) -> f32 {
+    /// Where the ray (`shear` set up for it) meets the primitive at BVH
+    /// position `id` of a tree that holds spheres, if before `t_max`: the
+    /// distance, and a triangle's edge functions.
+    #[inline(always)]
+    fn tree_candidate(
+        &self,
+        shear: &Shear,
+        id: usize,
+        (origin, dir): (Vec3, Vec3),
+        t_max: f32,
+    ) -> Option<(f32, Option<Edges>)> {
+        let corners = &self.triangles[id];
+        if !corners[0].x.is_nan() {
+            return shear
+                .intersect(corners, 0.0, t_max)
+                .map(|(t, e)| (t, Some(e)));
+        }
         match self.origins[id] {
             (SPHERE, k) => intersect_sphere(&self.spheres[k as usize], origin, dir, 0.0, t_max)
-                .unwrap_or(f32::INFINITY),
-            _ => f32::INFINITY,
+                .map(|t| (t, None)),
+            _ => None,
         }
     }
 
@@ -338,12 +348,7 @@ impl Geometry {
         let Some(bvh) = &self.bvh else { return false };
         let shear = Shear::new(origin, dir);
         !bvh.ray_traverse_miss(bvh_ray(origin, dir, t_max), |r, id| {
-            let corners = &self.triangles[id];
-            if corners[0].x.is_nan() {
-                return self.sphere_distance(id, origin, dir, r.tmax);
-            }
-            shear
-                .intersect(corners, 0.0, r.tmax)
+            self.tree_candidate(&shear, id, (origin, dir), r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
         })
     }
