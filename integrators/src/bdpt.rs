@@ -13,7 +13,7 @@
 
 use aether_core::{
     DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, PathDensity, RandomSequence, Sometimes,
-    StrategyRef, weights_of_split_variants,
+    Splits, StrategyRef, weight_of_split, weights_of_split_variants,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -344,6 +344,8 @@ struct Run<'r, 'a, 's> {
     only: Option<usize>,
     /// The camera's importance for the pixel's own first ray (its two ends).
     importance: Option<(Vec3, Vec3, f64)>,
+    /// The techniques of paths of the length given first.
+    splits: (usize, Splits<'a, SceneVertex>),
 }
 
 impl<'r, 'a, 's> Run<'r, 'a, 's> {
@@ -383,6 +385,7 @@ impl<'r, 'a, 's> Run<'r, 'a, 's> {
             seeds,
             only: None,
             importance: None,
+            splits: (0, Splits::new()),
         }
     }
 }
@@ -393,7 +396,7 @@ impl<'s> Bdpt<'s> {
     /// one of `run.only` vertices), to a light directly, or to nothing if
     /// they end on a light: the estimates of technique `own`.
     fn join<'a>(
-        &self,
+        &'a self,
         run: &mut Run<'_, 'a, 's>,
         head: &Path<'a>,
         (side, n): (&Subpath<'_>, usize),
@@ -425,40 +428,73 @@ impl<'s> Bdpt<'s> {
     /// The weighted estimate of `run.path`, sampled by `own`, whose
     /// integrand without the camera's importance is `through`: returned if
     /// the camera subpath chose the pixel, splatted otherwise.
-    fn contribute(&self, run: &mut Run<'_, '_, 's>, own: Split, through: DVec3) -> DVec3 {
+    fn contribute<'a>(&'a self, run: &mut Run<'_, 'a, 's>, own: Split, through: DVec3) -> DVec3 {
         // Occluded or black paths need no weight.
         if through == DVec3::ZERO {
             return DVec3::ZERO;
         }
         let (lens, v) = (run.path.vertices()[0], run.path.vertices());
         let d = lens.direction_to(&v[1]).unwrap_or(Vec3::Z);
-        let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
-        let at = |j| (j, self.camera.direction(self.scene, j));
-        let pixels: SmallVec<[_; 16]> = match splat {
-            true => self.camera.pixels_toward(&lens, d).map(at).collect(),
-            false => [(run.pixel, run.kit.look)].into_iter().collect(),
-        };
-        // The sample's own pixel is weighed by its own strategy, no variant.
-        let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
-        let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
-        let (mut seen, weights) = (DVec3::ZERO, self.weights(run.kit, &looks, own, &run.path));
-        for (&(j, _), &(w, p)) in pixels.iter().zip(&weights) {
-            let p = p.value();
-            let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
-            match unweighted * w {
-                e if p <= 0.0 || !e.is_finite() => {}
-                e if splat => run.splats.push((j, e.as_vec3())),
-                e => seen = e,
-            }
-            self.observe(run, (own, j, splat), unweighted, w, p);
+        let index = self.splits_for(run, own);
+        let kit = run.kit;
+        let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
+        let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
+        let (path, splits, h) = (&run.path, &run.splits.1[..], self.heuristic);
+        if !matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1)) {
+            // The sample's own pixel, weighed by its own camera strategy:
+            // one weight, without the lists of pixels and variants (their
+            // copies cost BDPT 2 % of its instructions).
+            let weight = DENSITIES.with_borrow_mut(|c| {
+                weight_of_split(path, &camera, &light, splits, index, h, Some(c))
+            });
+            return self.estimate(run, (own, run.pixel, false), d, through, weight);
         }
+        let at = |j| (j, self.camera.direction(self.scene, j));
+        let pixels: SmallVec<[_; 16]> = self.camera.pixels_toward(&lens, d).map(at).collect();
+        // Each pixel's camera direction takes the place of `look` in turn
+        // (strategies that live here, not as long as the listed splits).
+        let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
+        let mut local = Splits::new();
+        self.list_splits(kit, path.len(), &mut local);
+        let weights = DENSITIES.with_borrow_mut(|c| {
+            let c = Some(c);
+            weights_of_split_variants(path, &camera, &light, &local, index, h, c, 1, &looks)
+        });
+        for (&(j, _), &weight) in pixels.iter().zip(&weights) {
+            self.estimate(run, (own, j, true), d, through, weight);
+        }
+        DVec3::ZERO
+    }
+
+    /// The estimate of `run.path` for pixel `j`, leaving the lens in
+    /// direction `d`, with integrand `through` (without importance) and MIS
+    /// `weight` and density: splatted, or returned for the sample's pixel.
+    fn estimate(
+        &self,
+        run: &mut Run<'_, '_, 's>,
+        (own, j, splat): (Split, [u32; 2], bool),
+        d: Vec3,
+        through: DVec3,
+        (w, p): (f64, PathDensity),
+    ) -> DVec3 {
+        let p = p.value();
+        let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
+        let seen = match unweighted * w {
+            e if p <= 0.0 || !e.is_finite() => DVec3::ZERO,
+            e if splat => {
+                run.splats.push((j, e.as_vec3()));
+                DVec3::ZERO
+            }
+            e => e,
+        };
+        self.observe(run, (own, j, splat), unweighted, w, p);
         seen
     }
 
     /// The estimate of the light subpath as a whole if it ends on a thin
     /// lens (s = 0).
     fn reach_lens<'a>(
-        &self,
+        &'a self,
         run: &mut Run<'_, 'a, 's>,
         (light, lamp): (&Path<'a>, &Subpath<'_>),
     ) -> DVec3 {
@@ -503,30 +539,30 @@ impl<'s> Bdpt<'s> {
         }
     }
 
-    /// The MIS weights of `path` for the pixels of `looks`, the camera
-    /// direction strategies of each, against every split of it, and its
-    /// density under its own (zero, or not finite, where it has none).
-    fn weights<'a>(
-        &'a self,
-        kit: &'a Kit<'_, 's>,
-        looks: &[StrategyRef<'a, SceneVertex>],
-        own: Split,
-        path: &Path<'_>,
-    ) -> SmallVec<[(f64, PathDensity); 16]> {
-        let (n, mut splits) = (path.len(), aether_core::Splits::new());
-        let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
-        let (direct, splats) = (Some(one(&kit.direct)), self.splats);
-        aether_core::Split::bidirectional(n, direct, portal, splats, self.lens, &mut splits);
-        let index = match own {
+    /// The index of `own` among the techniques of paths as long as
+    /// `run.path`, listed in `run.splits` once per length and sample.
+    fn splits_for<'a>(&'a self, run: &mut Run<'_, 'a, 's>, own: Split) -> usize {
+        let n = run.path.len();
+        if run.splits.0 != n {
+            run.splits.1.clear();
+            self.list_splits(run.kit, n, &mut run.splits.1);
+            run.splits.0 = n;
+        }
+        match own {
             Split::Bdpt(s) => s,
             Split::Portal(k) => n + k,
-        };
-        // Each pixel's camera direction takes the place of `look` in turn.
-        let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
-        let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
-        DENSITIES.with_borrow_mut(|cache| {
-            let (h, c) = (self.heuristic, Some(cache));
-            weights_of_split_variants(path, &camera, &light, &splits, index, h, c, 1, looks)
-        })
+        }
+    }
+
+    /// Pushes every technique for paths of `n` vertices to `splits`.
+    fn list_splits<'x>(
+        &'x self,
+        kit: &'x Kit<'_, 's>,
+        n: usize,
+        splits: &mut Splits<'x, SceneVertex>,
+    ) {
+        let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
+        let (direct, lens) = (Some(one(&kit.direct)), self.lens);
+        aether_core::Split::bidirectional(n, direct, portal, self.splats, lens, splits);
     }
 }
