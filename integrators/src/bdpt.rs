@@ -261,8 +261,13 @@ impl Bdpt<'_> {
         if cam.len() != s || (t >= 2 && light.len() != t) {
             return Vec3::ZERO;
         }
-        let eye = Subpath::of(kit.f, End::Camera, cam.vertices());
-        let ends = (&light, &Subpath::of(kit.f, End::Light, light.vertices()));
+        let (mut eye, mut lamp) = (
+            Subpath::new(kit.f, End::Camera),
+            Subpath::new(kit.f, End::Light),
+        );
+        eye.extend(cam.vertices());
+        lamp.extend(light.vertices());
+        let ends = (&light, &lamp);
         let mut run = Run::new(kit, pixel, rng, splats, None);
         let radiance = if s == 0 {
             self.reach_lens(&mut run, ends)
@@ -301,8 +306,11 @@ impl Bdpt<'_> {
         // Light paths may reach a thin lens (s = 0) with the last vertex.
         let reach = max - usize::from(!self.lens);
         let light = walk([&kit.emit, &kit.leave], &kit.gather, reach, rng);
-        let eye = Subpath::of(f, End::Camera, cam.vertices());
-        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        // Built in place: `Subpath::of` returns 2 KB, a copy per sample.
+        let (mut eye, mut lamp) = (Subpath::new(f, End::Camera), Subpath::new(f, End::Light));
+        eye.extend(cam.vertices());
+        lamp.extend(light.vertices());
+        let ends = (&light, &lamp);
         let mut run = Run::new(kit, pixel, rng, splats, seeds);
         let mut radiance = self.reach_lens(&mut run, ends);
         for s in 1..=cam.len() {
@@ -323,7 +331,8 @@ impl Bdpt<'_> {
             });
             if line.is_complete() && f.visible(c, &line.vertices()[1]) {
                 let head = cam.slice(0..k).concat(&line.slice(1..3));
-                let side = Subpath::of(f, End::Camera, head.vertices());
+                let mut side = Subpath::new(f, End::Camera);
+                side.extend(head.vertices());
                 radiance += self.join(&mut run, &head, (&side, k + 2), ends, Split::Portal(k));
             }
         }

