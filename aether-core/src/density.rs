@@ -69,6 +69,13 @@ pub struct Density {
 }
 
 impl Density {
+    /// Zero, in area measure: what cannot be sampled.
+    pub(crate) const ZERO: Density = Density {
+        value: 0.0,
+        measure: Measure::Area,
+        dirac: 0,
+    };
+
     /// A continuous density in `measure`.
     #[must_use]
     pub fn new(value: f64, measure: Measure) -> Self {

@@ -35,7 +35,7 @@ pub fn density_evaluations() -> u64 {
 }
 
 /// Counts one density evaluation for [`density_evaluations`].
-fn count_evaluation() {
+pub(crate) fn count_evaluation() {
     EVALUATIONS.with(|c| c.set(c.get() + 1));
 }
 

@@ -18,6 +18,10 @@ use crate::vertex::{Geometry, Vertex};
 pub struct Prefix<'a, V> {
     vertices: &'a [V],
     reversed: bool,
+    /// The number of conditioning vertices, of which `vertices` are the
+    /// nearest (all of them, but for a strategy of short memory evaluated
+    /// where the rest are not at hand: see [`Prefix::nearest`]).
+    len: usize,
 }
 
 impl<V> Clone for Prefix<'_, V> {
@@ -34,6 +38,7 @@ impl<'a, V> Prefix<'a, V> {
         Prefix {
             vertices,
             reversed: false,
+            len: vertices.len(),
         }
     }
 
@@ -43,19 +48,32 @@ impl<'a, V> Prefix<'a, V> {
         Prefix {
             vertices,
             reversed: true,
+            len: vertices.len(),
+        }
+    }
+
+    /// The `nearest` vertices of a prefix of `len` (nearest first if
+    /// `reversed`, in path order otherwise): all a strategy whose memory
+    /// is `nearest.len()` reads of the prefix, besides its length.
+    pub(crate) fn nearest(nearest: &'a [V], reversed: bool, len: usize) -> Self {
+        debug_assert!(nearest.len() <= len);
+        Prefix {
+            vertices: nearest,
+            reversed,
+            len,
         }
     }
 
     /// Number of conditioning vertices (the depth of the step).
     #[must_use]
     pub fn len(&self) -> usize {
-        self.vertices.len()
+        self.len
     }
 
     /// True at the start of a path.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.vertices.is_empty()
+        self.len == 0
     }
 
     /// The `k`-th most recent vertex (0 = the last one).

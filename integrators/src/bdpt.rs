@@ -12,8 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DensityCache, DynStrategy, Heuristic, INLINE_VERTICES, PathDensity, RandomSequence, Sometimes,
-    Splits, StrategyRef, weight_of_split, weights_of_split_variants,
+    DynStrategy, Heuristic, INLINE_VERTICES, Joins, RandomSequence, Sometimes, StrategyRef,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -38,11 +37,6 @@ type Path<'a> = RandomSequence<'a, SceneVertex>;
 /// densities (and with them MIS) count it as that share of a sample.
 const PORTAL_SHARE: f64 = 0.25;
 
-thread_local! {
-    /// Densities shared by the connections of one sample.
-    static DENSITIES: std::cell::RefCell<DensityCache> = std::cell::RefCell::new(DensityCache::new());
-}
-
 /// Where a technique splits a path: `Bdpt(s)` samples the first s vertices
 /// from the camera and the rest from the light; `Portal(k)` samples the
 /// first k from the camera, the next two as a portal segment, the rest from
@@ -51,6 +45,17 @@ thread_local! {
 enum Split {
     Bdpt(usize),
     Portal(usize),
+}
+
+impl Split {
+    /// The technique's index in `aether_core::Split::bidirectional`'s list
+    /// for paths of `n` vertices.
+    fn index(self, n: usize) -> usize {
+        match self {
+            Split::Bdpt(s) => s,
+            Split::Portal(k) => n + k,
+        }
+    }
 }
 
 /// Bidirectional (and, with a portal, tridirectional) path tracing.
@@ -261,14 +266,10 @@ impl Bdpt<'_> {
         if cam.len() != s || (t >= 2 && light.len() != t) {
             return Vec3::ZERO;
         }
-        let (mut eye, mut lamp) = (
-            Subpath::new(kit.f, End::Camera),
-            Subpath::new(kit.f, End::Light),
-        );
-        eye.extend(cam.vertices());
-        lamp.extend(light.vertices());
-        let ends = (&light, &lamp);
-        let mut run = Run::new(kit, pixel, rng, splats, None);
+        let eye = Subpath::of(kit.f, End::Camera, cam.vertices());
+        let ends = (&light, &Subpath::of(kit.f, End::Light, light.vertices()));
+        let joins = self.joins(kit, (&cam, &light));
+        let mut run = Run::new(kit, pixel, rng, splats, None, joins);
         let radiance = if s == 0 {
             self.reach_lens(&mut run, ends)
         } else {
@@ -306,12 +307,10 @@ impl Bdpt<'_> {
         // Light paths may reach a thin lens (s = 0) with the last vertex.
         let reach = max - usize::from(!self.lens);
         let light = walk([&kit.emit, &kit.leave], &kit.gather, reach, rng);
-        // Built in place: `Subpath::of` returns 2 KB, a copy per sample.
-        let (mut eye, mut lamp) = (Subpath::new(f, End::Camera), Subpath::new(f, End::Light));
-        eye.extend(cam.vertices());
-        lamp.extend(light.vertices());
-        let ends = (&light, &lamp);
-        let mut run = Run::new(kit, pixel, rng, splats, seeds);
+        let eye = Subpath::of(f, End::Camera, cam.vertices());
+        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        let joins = self.joins(kit, (&cam, &light));
+        let mut run = Run::new(kit, pixel, rng, splats, seeds, joins);
         let mut radiance = self.reach_lens(&mut run, ends);
         for s in 1..=cam.len() {
             radiance += self.join(&mut run, &cam, (&eye, s), ends, Split::Bdpt(s));
@@ -331,8 +330,7 @@ impl Bdpt<'_> {
             });
             if line.is_complete() && f.visible(c, &line.vertices()[1]) {
                 let head = cam.slice(0..k).concat(&line.slice(1..3));
-                let mut side = Subpath::new(f, End::Camera);
-                side.extend(head.vertices());
+                let side = Subpath::of(f, End::Camera, head.vertices());
                 radiance += self.join(&mut run, &head, (&side, k + 2), ends, Split::Portal(k));
             }
         }
@@ -342,7 +340,7 @@ impl Bdpt<'_> {
 
 /// What the connections of one sample share (with the densities cached
 /// for them, which a new run forgets).
-struct Run<'r, 'a, 's> {
+struct Run<'r, 'j, 'a, 's> {
     kit: &'a Kit<'a, 's>,
     pixel: [u32; 2],
     rng: &'r mut Rng<'r>,
@@ -353,11 +351,11 @@ struct Run<'r, 'a, 's> {
     only: Option<usize>,
     /// The camera's importance for the pixel's own first ray (its two ends).
     importance: Option<(Vec3, Vec3, f64)>,
-    /// The techniques of paths of the length given first.
-    splits: (usize, Splits<'a, SceneVertex>),
+    /// The MIS weights of the joins of the sample's two subpaths.
+    joins: Joins<'j, 'a, SceneVertex>,
 }
 
-impl<'r, 'a, 's> Run<'r, 'a, 's> {
+impl<'r, 'j, 'a, 's> Run<'r, 'j, 'a, 's> {
     /// The camera's importance for pixel `pixel` and the first ray of
     /// `self.path`, leaving the lens in direction `d`; `own`, for the
     /// sample's own pixel, whose connections all share their first ray, is
@@ -383,8 +381,8 @@ impl<'r, 'a, 's> Run<'r, 'a, 's> {
         rng: &'r mut Rng<'r>,
         splats: &'r mut Splats,
         seeds: Option<&'r mut Vec<SeedPath>>,
+        joins: Joins<'j, 'a, SceneVertex>,
     ) -> Self {
-        DENSITIES.with_borrow_mut(DensityCache::clear);
         Run {
             kit,
             pixel,
@@ -394,7 +392,7 @@ impl<'r, 'a, 's> Run<'r, 'a, 's> {
             seeds,
             only: None,
             importance: None,
-            splits: (0, Splits::new()),
+            joins,
         }
     }
 }
@@ -406,7 +404,7 @@ impl<'s> Bdpt<'s> {
     /// they end on a light: the estimates of technique `own`.
     fn join<'a>(
         &'a self,
-        run: &mut Run<'_, 'a, 's>,
+        run: &mut Run<'_, '_, 'a, 's>,
         head: &Path<'a>,
         (side, n): (&Subpath<'_>, usize),
         (light, lamp): (&Path<'a>, &Subpath<'_>),
@@ -437,66 +435,39 @@ impl<'s> Bdpt<'s> {
     /// The weighted estimate of `run.path`, sampled by `own`, whose
     /// integrand without the camera's importance is `through`: returned if
     /// the camera subpath chose the pixel, splatted otherwise.
-    fn contribute<'a>(&'a self, run: &mut Run<'_, 'a, 's>, own: Split, through: DVec3) -> DVec3 {
+    fn contribute<'a>(
+        &'a self,
+        run: &mut Run<'_, '_, 'a, 's>,
+        own: Split,
+        through: DVec3,
+    ) -> DVec3 {
         // Occluded or black paths need no weight.
         if through == DVec3::ZERO {
             return DVec3::ZERO;
         }
         let (lens, v) = (run.path.vertices()[0], run.path.vertices());
         let d = lens.direction_to(&v[1]).unwrap_or(Vec3::Z);
-        let index = self.splits_for(run, own);
-        let kit = run.kit;
-        let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
-        let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
-        let (path, splits, h) = (&run.path, &run.splits.1[..], self.heuristic);
-        if !matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1)) {
-            // The sample's own pixel, weighed by its own camera strategy:
-            // one weight, without the lists of pixels and variants (their
-            // copies cost BDPT 2 % of its instructions).
-            let weight = DENSITIES.with_borrow_mut(|c| {
-                weight_of_split(path, &camera, &light, splits, index, h, Some(c))
-            });
-            return self.estimate(run, (own, run.pixel, false), d, through, weight);
-        }
+        let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
         let at = |j| (j, self.camera.direction(self.scene, j));
-        let pixels: SmallVec<[_; 16]> = self.camera.pixels_toward(&lens, d).map(at).collect();
-        // Each pixel's camera direction takes the place of `look` in turn
-        // (strategies that live here, not as long as the listed splits).
-        let looks: SmallVec<[_; 16]> = pixels.iter().map(|(_, look)| one(look)).collect();
-        let mut local = Splits::new();
-        self.list_splits(kit, path.len(), &mut local);
-        let weights = DENSITIES.with_borrow_mut(|c| {
-            let c = Some(c);
-            weights_of_split_variants(path, &camera, &light, &local, index, h, c, 1, &looks)
-        });
-        for (&(j, _), &weight) in pixels.iter().zip(&weights) {
-            self.estimate(run, (own, j, true), d, through, weight);
-        }
-        DVec3::ZERO
-    }
-
-    /// The estimate of `run.path` for pixel `j`, leaving the lens in
-    /// direction `d`, with integrand `through` (without importance) and MIS
-    /// `weight` and density: splatted, or returned for the sample's pixel.
-    fn estimate(
-        &self,
-        run: &mut Run<'_, '_, 's>,
-        (own, j, splat): (Split, [u32; 2], bool),
-        d: Vec3,
-        through: DVec3,
-        (w, p): (f64, PathDensity),
-    ) -> DVec3 {
-        let p = p.value();
-        let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
-        let seen = match unweighted * w {
-            e if p <= 0.0 || !e.is_finite() => DVec3::ZERO,
-            e if splat => {
-                run.splats.push((j, e.as_vec3()));
-                DVec3::ZERO
-            }
-            e => e,
+        let pixels: SmallVec<[_; 16]> = match splat {
+            true => self.camera.pixels_toward(&lens, d).map(at).collect(),
+            false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
-        self.observe(run, (own, j, splat), unweighted, w, p);
+        // The sample's own pixel is weighed by its own strategy, no variant.
+        let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
+        let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
+        let weights = run.joins.weights(own.index(v.len()), &run.path, 1, &looks);
+        let mut seen = DVec3::ZERO;
+        for (&(j, _), &(w, p)) in pixels.iter().zip(&weights) {
+            let p = p.value();
+            let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
+            match unweighted * w {
+                e if p <= 0.0 || !e.is_finite() => {}
+                e if splat => run.splats.push((j, e.as_vec3())),
+                e => seen = e,
+            }
+            self.observe(run, (own, j, splat), unweighted, w, p);
+        }
         seen
     }
 
@@ -504,7 +475,7 @@ impl<'s> Bdpt<'s> {
     /// lens (s = 0).
     fn reach_lens<'a>(
         &'a self,
-        run: &mut Run<'_, 'a, 's>,
+        run: &mut Run<'_, '_, 'a, 's>,
         (light, lamp): (&Path<'a>, &Subpath<'_>),
     ) -> DVec3 {
         if light.vertices().last().is_none_or(|v| v.site != Site::Lens) {
@@ -519,7 +490,7 @@ impl<'s> Bdpt<'s> {
     /// of Veach's MLT).
     fn observe(
         &self,
-        run: &mut Run<'_, '_, 's>,
+        run: &mut Run<'_, '_, '_, 's>,
         (own, j, splat): (Split, [u32; 2], bool),
         unweighted: DVec3,
         w: f64,
@@ -548,30 +519,17 @@ impl<'s> Bdpt<'s> {
         }
     }
 
-    /// The index of `own` among the techniques of paths as long as
-    /// `run.path`, listed in `run.splits` once per length and sample.
-    fn splits_for<'a>(&'a self, run: &mut Run<'_, 'a, 's>, own: Split) -> usize {
-        let n = run.path.len();
-        if run.splits.0 != n {
-            run.splits.1.clear();
-            self.list_splits(run.kit, n, &mut run.splits.1);
-            run.splits.0 = n;
-        }
-        match own {
-            Split::Bdpt(s) => s,
-            Split::Portal(k) => n + k,
-        }
-    }
-
-    /// Pushes every technique for paths of `n` vertices to `splits`.
-    fn list_splits<'x>(
+    /// The MIS weights of the joins of the subpaths `(eye, light)` that
+    /// `kit`'s strategies sampled.
+    fn joins<'p, 'x>(
         &'x self,
         kit: &'x Kit<'_, 's>,
-        n: usize,
-        splits: &mut Splits<'x, SceneVertex>,
-    ) {
+        subpaths: (&'p Path<'x>, &'p Path<'x>),
+    ) -> Joins<'p, 'x, SceneVertex> {
+        let camera = [one(&kit.lens), one(&kit.look), one(&kit.scatter)];
+        let light = [one(&kit.emit), one(&kit.leave), one(&kit.gather)];
         let portal = self.portal.as_ref().map(|p| StrategyRef::Two(p));
-        let (direct, lens) = (Some(one(&kit.direct)), self.lens);
-        aether_core::Split::bidirectional(n, direct, portal, self.splats, lens, splits);
+        let (steps, counts) = ((Some(one(&kit.direct)), portal), (self.splats, self.lens));
+        Joins::new(subpaths, (&camera, &light), steps, counts, self.heuristic)
     }
 }

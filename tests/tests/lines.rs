@@ -135,7 +135,8 @@ fn each_integrator_stays_within_its_budget() {
             ("impl<'s> Bdpt<'s>", "join"),
             ("impl<'s> Bdpt<'s>", "contribute"),
             ("impl<'s> Bdpt<'s>", "reach_lens"),
-            ("impl<'s> Bdpt<'s>", "weight"),
+            ("impl<'s> Bdpt<'s>", "joins"),
+            ("impl Split", "index"),
         ],
     ) - tridir_lines;
     // Gradient-domain tracing: its estimator (the base path, its MIS

@@ -1,0 +1,107 @@
+//! `Joins` gives every join of a camera and a light subpath the weight and
+//! density that `weight_of_split` gives the joined path over
+//! `Split::bidirectional`'s techniques: joins to light subpath vertices,
+//! to a light sample of the direct step (t = 1), camera paths that found
+//! the light (t = 0) and light paths that reached the camera (s = 0, 1,
+//! per-pixel variants of the camera ray), with and without a lens to reach.
+
+use aether_core::testing::{BidirectionalFixture, LookDown, TestScene, TestVertex};
+use aether_core::{
+    DynStrategy, Heuristic, Joins, PathDensity, Pcg32, RandomSequence, Split, Splits, StrategyRef,
+    weight_of_split, weights_of_split_variants,
+};
+
+fn one<'a>(s: &'a dyn DynStrategy<TestVertex>) -> StrategyRef<'a, TestVertex> {
+    StrategyRef::One(s)
+}
+
+fn close(a: (f64, PathDensity), b: (f64, PathDensity), what: &str) {
+    let near = |x: f64, y: f64| (x - y).abs() <= 1e-9 * x.abs().max(y.abs()) + 1e-300;
+    assert!(near(a.0, b.0), "{what}: weight {} vs {}", a.0, b.0);
+    assert!(
+        near(a.1.value(), b.1.value()) && a.1.dirac_order() == b.1.dirac_order(),
+        "{what}: density {:?} vs {:?}",
+        a.1,
+        b.1
+    );
+}
+
+#[test]
+fn joins_weigh_as_split_weights_do() {
+    let scene = TestScene::open_box();
+    let f = BidirectionalFixture::new(&scene);
+    // The light sample doubles as the direct step (it ignores the path).
+    let direct = one(&f.light);
+    let camera = [one(&f.camera), one(&f.look), one(&f.bounce)];
+    let light = [one(&f.light), one(&f.bounce)];
+    let other_look = LookDown::new(&scene);
+    let mut rng = Pcg32::new(11, 3);
+    let (mut checked, mut shared, mut weighed) = ([0usize; 4], 0usize, 0usize);
+    for sample in 0..300 {
+        let through_lens = sample % 2 == 0;
+        let counts = (64.0, through_lens);
+        let mut eye = RandomSequence::new();
+        eye.append(&f.camera)
+            .append(&f.look)
+            .repeat(&f.bounce, 5, &mut rng);
+        let mut lights = RandomSequence::new();
+        lights.append(&f.light).repeat(&f.bounce, 4, &mut rng);
+        let subpaths = (&eye, &lights);
+        let steps = (Some(direct), None);
+        let mut joins = Joins::new(subpaths, (&camera, &light), steps, counts, Heuristic::POWER);
+        for s in 0..=eye.len() {
+            for t in 0..=lights.len() {
+                let n = s + t;
+                if n < 2 {
+                    continue;
+                }
+                let mut path = eye.slice(0..s);
+                match t {
+                    0 => {}
+                    1 if s >= 1 => {
+                        if !path.append_sample(&f.light, &mut rng) {
+                            continue;
+                        }
+                    }
+                    1 => continue,
+                    _ => path = path.concat(&lights.slice(0..t).reversed()),
+                }
+                let mut splits = Splits::new();
+                Split::bidirectional(n, Some(direct), None, counts.0, counts.1, &mut splits);
+                let h = Heuristic::POWER;
+                if s >= 2 {
+                    let by_split = weight_of_split(&path, &camera, &light, &splits, s, h, None);
+                    let by_joins = joins.weight(s, &path);
+                    close(by_joins, by_split, &format!("(s, t) = ({s}, {t})"));
+                    shared += usize::from(by_joins.0 > 0.0 && by_joins.0 < 1.0);
+                    checked[t.min(3)] += 1;
+                } else {
+                    // Splatted: the camera ray's strategy varies by pixel.
+                    let variants = [one(&f.look), one(&other_look)];
+                    let by_split = weights_of_split_variants(
+                        &path, &camera, &light, &splits, s, h, None, 1, &variants,
+                    );
+                    let by_joins = joins.weights(s, &path, 1, &variants);
+                    for (a, b) in by_joins.iter().zip(&by_split) {
+                        close(*a, *b, &format!("splat (s, t) = ({s}, {t})"));
+                        shared += usize::from(a.0 > 0.0 && a.0 < 1.0);
+                    }
+                    assert_eq!(by_joins.len(), by_split.len());
+                    checked[3] += 1;
+                }
+            }
+        }
+        // Every join took the shortcut.
+        let joined = checked.iter().sum::<usize>();
+        assert_eq!(joins.shortcuts(), joined - weighed, "sample {sample}");
+        weighed = joined;
+    }
+    // Every kind of join was met, and often, and many weights are shared
+    // between techniques (neither 0 nor 1).
+    assert!(
+        checked.iter().all(|&c| c > 50),
+        "joins checked: {checked:?}"
+    );
+    assert!(shared > 500, "{shared} weights strictly between 0 and 1");
+    eprintln!("joins checked {checked:?}, {shared} shared weights");
+}
