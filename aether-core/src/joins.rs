@@ -10,13 +10,114 @@
 use smallvec::SmallVec;
 
 use crate::density::{Density, Measure, PathDensity};
-use crate::kept::{CAMERA, DIRECT, Kept, LIGHT, STORE, Store, VARYING, chain, entry, factor};
+use crate::kept::{CAMERA, DIRECT, Kept, LIGHT, STORE, Store, VARYING, View, chain, entry, factor};
+use crate::last_step::Aside;
 use crate::mis::Heuristic;
 use crate::recycle::Recycle;
 use crate::sequence::{RandomSequence, Span, fresh_id};
 use crate::split::{Split, Splits, weight_of_split, weights_of_split_variants};
 use crate::strategy::StrategyRef;
 use crate::vertex::Vertex;
+
+/// A path joined from the first `n` vertices of a camera-side sequence
+/// (`head`: a camera subpath, or one spliced with a portal segment) and
+/// either a light sample (`lamp`, t = 1) or the first `t` vertices of a
+/// light subpath, read backwards: what [`Joins::join_weights`] weighs
+/// without building the path.
+pub struct Join<'a, 's, V: Recycle> {
+    head: &'a RandomSequence<'s, V>,
+    n: usize,
+    light: &'a RandomSequence<'s, V>,
+    t: usize,
+    lamp: Option<&'a Aside<V>>,
+}
+
+impl<V: Recycle> Clone for Join<'_, '_, V> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<V: Recycle> Copy for Join<'_, '_, V> {}
+
+impl<V: Recycle> std::fmt::Debug for Join<'_, '_, V> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (s, t, lamp) = (self.n, self.t, self.lamp.is_some());
+        write!(f, "Join {{ s: {s}, t: {t}, light sample: {lamp} }}")
+    }
+}
+
+impl<'a, 's, V: Vertex> Join<'a, 's, V> {
+    /// `head`'s first `n` vertices, then `lamp` if given (and t is 1),
+    /// else `light`'s first `t` read backwards.
+    #[must_use]
+    pub fn new(
+        (head, n): (&'a RandomSequence<'s, V>, usize),
+        (light, t): (&'a RandomSequence<'s, V>, usize),
+        lamp: Option<&'a Aside<V>>,
+    ) -> Self {
+        Join {
+            head,
+            n,
+            light,
+            t: if lamp.is_some() { 1 } else { t },
+            lamp,
+        }
+    }
+
+    /// The number of vertices.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.n + self.t
+    }
+
+    /// True if the join has no vertices.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The camera-side vertices, then the rest.
+    fn view(&self) -> View<'a, V> {
+        View {
+            eye: &self.head.vertices()[..self.n],
+            tail: match self.lamp {
+                Some(l) => std::slice::from_ref(&l.vertex),
+                None => &self.light.vertices()[..self.t],
+            },
+            in_path_order: false,
+        }
+    }
+
+    /// Vertex `i`, from the camera end.
+    ///
+    /// # Panics
+    /// If `i` is not below [`len`](Self::len).
+    #[must_use]
+    pub fn vertex(&self, i: usize) -> &'a V {
+        self.view().at(i)
+    }
+
+    /// The vertices, from the camera end.
+    pub fn vertices(&self) -> impl Iterator<Item = &'a V> + '_ {
+        (0..self.len()).map(|i| self.vertex(i))
+    }
+
+    /// The joined path, with the strategies and recorded densities of its
+    /// parts (the light sample's by `direct`).
+    fn path(&self, direct: Option<StrategyRef<'s, V>>) -> RandomSequence<'s, V> {
+        let mut path = RandomSequence::new();
+        path.extend_from(self.head, 0..self.n, false);
+        match (self.lamp, direct) {
+            (Some(l), Some(d)) => {
+                path.push_step(d, &mut SmallVec::from_elem(l.vertex.clone(), 1), l.density)
+            }
+            _ => {
+                path.extend_from(self.light, 0..self.t, true);
+            }
+        }
+        path
+    }
+}
 
 /// The MIS weights of the paths that join the first s vertices of a camera
 /// subpath (`eye`) to the first t of a light subpath, read backwards, for
@@ -154,6 +255,37 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         }
     }
 
+    /// As [`weights`](Self::weights) for `join`, without building the
+    /// path where the kept densities serve (a join of these joins' own
+    /// subpaths, no portal); `own` indexes techniques as there.
+    pub fn join_weights(
+        &mut self,
+        join: &Join<'_, 's, V>,
+        own: usize,
+        at: usize,
+        variants: &[StrategyRef<'_, V>],
+    ) -> SmallVec<[(f64, PathDensity); 16]> {
+        let variants = match (variants, self.camera.get(at)) {
+            ([v], Some(c)) if v.same(c) => None,
+            _ => Some((at, variants)),
+        };
+        let same = |a: &RandomSequence<'s, V>, b: &RandomSequence<'s, V>| std::ptr::eq(a, b);
+        let ours = (join.n == 0 || same(join.head, self.eye))
+            && (join.t < 2 || join.lamp.is_some() || same(join.light, self.light));
+        if ours && own == join.n && variants.is_none_or(|(at, _)| own <= at) {
+            let lamp = join.lamp.map(|l| l.density);
+            if let Some(w) = self.weigh_view(&join.view(), lamp, variants) {
+                self.shortcuts += 1;
+                return w;
+            }
+        }
+        let path = join.path(self.direct);
+        match variants {
+            None => self.weigh_any(own, &path, None),
+            Some((at, v)) => self.weigh_any(own, &path, Some((at, v))),
+        }
+    }
+
     /// How many weights came from the densities the vertices keep (the
     /// others, with a portal or long memories, from
     /// [`weights_of_split_variants`](crate::weights_of_split_variants)).
@@ -213,14 +345,34 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         path: &RandomSequence<'_, V>,
         variants: Option<(usize, &[StrategyRef<'_, V>])>,
     ) -> Option<SmallVec<[(f64, PathDensity); 16]>> {
-        let n = path.len();
-        let zero = PathDensity::ONE.times(Density::ZERO);
+        let (n, x) = (path.len(), path.vertices());
         if !path.is_complete() || n == 0 {
-            return Some(SmallVec::from_elem(
-                (0.0, zero),
-                variants.map_or(1, |v| v.1.len()),
-            ));
+            let zero = PathDensity::ONE.times(Density::ZERO);
+            let count = variants.map_or(1, |v| v.1.len());
+            return Some(SmallVec::from_elem((0.0, zero), count));
         }
+        let view = View {
+            eye: &x[..s],
+            tail: &x[s..],
+            in_path_order: true,
+        };
+        // A light sample's density, as the direct step recorded it.
+        let lamp = self
+            .direct
+            .filter(|_| n - s == 1)
+            .map(|d| path.factor(&Span::new(n - 1, 1, Some(d), false, 0), None));
+        self.weigh_view(&view, lamp, variants)
+    }
+
+    /// The weights of the join `view`, whose light sample (if it ends on
+    /// one) has the direct step's density `lamp`, from the vertices' kept
+    /// densities; `None` where they do not serve.
+    fn weigh_view(
+        &mut self,
+        view: &View<'_, V>,
+        lamp: Option<Density>,
+        variants: Option<(usize, &[StrategyRef<'_, V>])>,
+    ) -> Option<SmallVec<[(f64, PathDensity); 16]>> {
         if !self.short {
             return None;
         }
@@ -230,7 +382,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
             if store.owner != self.id {
                 self.take(&mut store);
             }
-            self.weigh_in(&mut store, s, path, variants)
+            self.weigh_in(&mut store, view, lamp, variants)
         })
     }
 
@@ -249,20 +401,21 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
     fn weigh_in(
         &self,
         store: &mut Store,
-        s: usize,
-        path: &RandomSequence<'_, V>,
+        view: &View<'_, V>,
+        lamp: Option<Density>,
         variants: Option<(usize, &[StrategyRef<'_, V>])>,
     ) -> Option<SmallVec<[(f64, PathDensity); 16]>> {
-        let (n, x) = (path.len(), path.vertices());
+        let (s, n) = (view.s(), view.len());
         let t = n - s;
         if s >= store.eye_chain.len() || (t >= 2 && t >= store.light_chain.len()) {
             return None;
         }
         debug_assert!(
-            (0..s).all(|i| x[i].position() == self.eye.vertices()[i].position())
+            (0..s).all(|i| view.at(i).position() == self.eye.vertices()[i].position())
                 && (t < 2
-                    || (s..n)
-                        .all(|i| x[i].position() == self.light.vertices()[n - 1 - i].position())),
+                    || (s..n).all(|i| {
+                        view.at(i).position() == self.light.vertices()[n - 1 - i].position()
+                    })),
             "a join is the eye's first s vertices and the light subpath's first t, reversed"
         );
         let Store {
@@ -282,7 +435,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
             let varies = variants.is_some_and(|(at, _)| at == i);
             camera.push(match entry(&self.camera, i) {
                 Some((k, strategy)) if !varies => {
-                    factor(kept, (s, x), i, strategy, CAMERA | k, false)
+                    factor(kept, view, i, strategy, CAMERA | k, false)
                 }
                 // A varying entry is evaluated per variant below.
                 _ => Density::ZERO,
@@ -293,14 +446,14 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         let light_side = if t == 1 { 0..n } else { 0..s };
         for i in light_side {
             if let Some((k, strategy)) = entry(&self.emitter, n - 1 - i) {
-                light[i] = factor(kept, (s, x), i, strategy, LIGHT | k, true);
+                light[i] = factor(kept, view, i, strategy, LIGHT | k, true);
             }
         }
         // The direct step's density of the last vertex: recorded for a
         // light sample, else kept or evaluated.
-        let direct = self.direct.map(|d| match t {
-            1 => path.factor(&Span::new(n - 1, 1, Some(d), false, 0), None),
-            _ => factor(kept, (s, x), n - 1, d, DIRECT, false),
+        let direct = self.direct.map(|d| match (t, lamp) {
+            (1, Some(density)) => density,
+            _ => factor(kept, view, n - 1, d, DIRECT, false),
         });
         suffix.clear();
         suffix.resize(n + 1, PathDensity::ONE);
@@ -318,7 +471,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         for &v in variants {
             if at < n {
                 let kept = &mut (&mut store.eye_kept[..], &mut store.light_kept[..]);
-                store.camera[at - s] = factor(kept, (s, x), at, v, VARYING, false);
+                store.camera[at - s] = factor(kept, view, at, v, VARYING, false);
             }
             weights.push(self.weigh_one(store, s, direct));
         }

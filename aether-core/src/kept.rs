@@ -6,6 +6,8 @@
 
 use std::cell::RefCell;
 
+use smallvec::SmallVec;
+
 use crate::density::{Density, PathDensity};
 use crate::mis::DensityCache;
 use crate::sequence::{RandomSequence, count_evaluation};
@@ -126,27 +128,85 @@ pub(crate) fn place(s: usize, n: usize, i: usize) -> Place {
     }
 }
 
-/// The density of vertex `i` of the join `(s, x)` under `strategy`
-/// (entry `tag` of its list), forward or `reversed`: kept by the
-/// vertex if it and the vertices the strategy remembers are of one
-/// subpath, and evaluated from the nearest vertices otherwise. A
-/// varying camera entry (tagged with no entry index) is never kept.
+/// The vertices of a join: the eye's first `s`, then `tail`, the other
+/// `n − s` (a light sample, or the light subpath's first vertices, read
+/// backwards from the join unless `in_path_order`).
+#[derive(Clone, Copy)]
+pub(crate) struct View<'a, V> {
+    pub(crate) eye: &'a [V],
+    pub(crate) tail: &'a [V],
+    pub(crate) in_path_order: bool,
+}
+
+impl<'a, V: Clone> View<'a, V> {
+    pub(crate) fn s(&self) -> usize {
+        self.eye.len()
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.eye.len() + self.tail.len()
+    }
+
+    /// Vertex `i` in path order.
+    pub(crate) fn at(&self, i: usize) -> &'a V {
+        let (s, n) = (self.s(), self.len());
+        match i {
+            i if i < s => &self.eye[i],
+            i if self.in_path_order => &self.tail[i - s],
+            i => &self.tail[n - 1 - i],
+        }
+    }
+
+    /// The `m` vertices nearest vertex `i` (before it, or after it if
+    /// `reversed`), as a prefix of `len` vertices: a slice of one subpath
+    /// where they lie in one, else copied into `copy`.
+    fn nearest<'c>(
+        &self,
+        (i, m, reversed): (usize, usize, bool),
+        len: usize,
+        copy: &'c mut SmallVec<[V; 2]>,
+    ) -> Prefix<'c, V>
+    where
+        'a: 'c,
+    {
+        let (s, n) = (self.s(), self.len());
+        let range = if reversed { i + 1..i + 1 + m } else { i - m..i };
+        let path_order = !reversed;
+        if range.end <= s {
+            return Prefix::nearest(&self.eye[range], reversed, len);
+        }
+        if range.start >= s && self.in_path_order {
+            return Prefix::nearest(&self.tail[range.start - s..range.end - s], reversed, len);
+        }
+        if range.start >= s {
+            // Read backwards: the order flips.
+            let tail = &self.tail[n - range.end..n - range.start];
+            return Prefix::nearest(tail, path_order, len);
+        }
+        // Across the join: copied in path order, which is nearest first
+        // for a reversed step.
+        copy.clear();
+        copy.extend(range.map(|j| self.at(j).clone()));
+        Prefix::nearest(copy, reversed, len)
+    }
+}
+
+/// The density of vertex `i` of the join `view` under `strategy` (entry
+/// `tag` of its list), forward or `reversed`: kept by the vertex if it and
+/// the vertices the strategy remembers are of one subpath, and evaluated
+/// from the nearest vertices otherwise. A varying camera entry (tagged
+/// with no entry index) is never kept.
 pub(crate) fn factor<V: Vertex>(
     (eye_kept, light_kept): &mut (&mut [Kept], &mut [Kept]),
-    (s, x): (usize, &[V]),
+    view: &View<'_, V>,
     i: usize,
     strategy: StrategyRef<'_, V>,
     tag: u32,
     reversed: bool,
 ) -> Density {
-    let n = x.len();
+    let (s, n) = (view.s(), view.len());
     let len = if reversed { n - 1 - i } else { i };
     let m = strategy.memory().min(len);
-    let nearest = if reversed {
-        &x[i + 1..i + 1 + m]
-    } else {
-        &x[i - m..i]
-    };
     let class = strategy.depth_class(len) as u32;
     let here = place(s, n, i);
     let first = if reversed { i + 1 } else { i - m };
@@ -166,10 +226,9 @@ pub(crate) fn factor<V: Vertex>(
         return d;
     }
     count_evaluation();
-    let d = strategy.density_of(
-        Prefix::nearest(nearest, reversed, len),
-        std::slice::from_ref(&x[i]),
-    );
+    let mut copy = SmallVec::new();
+    let prefix = view.nearest((i, m, reversed), len, &mut copy);
+    let d = strategy.density_of(prefix, std::slice::from_ref(view.at(i)));
     if let Some(k) = kept {
         k.keep(tag, class, d);
     }

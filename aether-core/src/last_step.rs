@@ -38,8 +38,24 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         if !self.is_complete() {
             return None;
         }
+        self.sample_after(self.len(), strategy, rng)
+    }
+
+    /// As [`sample_aside`](Self::sample_aside), after this sequence's first
+    /// `len` vertices (a light sample from a prefix of a camera subpath,
+    /// whether or not the subpath went on).
+    ///
+    /// # Panics
+    /// If `len` is beyond the sequence's vertices.
+    pub fn sample_after(
+        &self,
+        len: usize,
+        strategy: &dyn DynStrategy<V>,
+        rng: &mut dyn UniformSource,
+    ) -> Option<Aside<V>> {
+        let prefix = Prefix::forward(&self.vertices()[..len]);
         let mut out = SmallVec::<[V; 2]>::new();
-        let (kind, density) = strategy.sample_step(Prefix::forward(self.vertices()), rng, &mut out);
+        let (kind, density) = strategy.sample_step(prefix, rng, &mut out);
         let vertex = out.pop().filter(|_| kind == StepKind::Vertex)?;
         Some(Aside { vertex, density })
     }

@@ -71,7 +71,7 @@ pub use choice::{Mixture, RussianRoulette, Select};
 pub use density::{Density, Measure, PathDensity};
 pub use distribution::{Coords, Distribution, Embed, Sample, Step, Uniforms};
 pub use frame::{Frame, reflect, refract};
-pub use joins::Joins;
+pub use joins::{Join, Joins};
 pub use last_step::{Aside, weight_of_last_step, weight_of_step};
 pub use mis::{DensityCache, Heuristic, Weights, combine};
 pub use mutation::{ChainPath, Mutation, Mutator, acceptance, propose, transition_density};

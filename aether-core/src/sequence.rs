@@ -562,6 +562,18 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             self.end = Some((kind, density));
             return (kind, measured);
         }
+        self.push_step(strategy, &mut out, density);
+        (StepKind::Vertex, measured)
+    }
+
+    /// Appends the vertices `out` that `strategy` sampled after this
+    /// sequence's with `density`, recording it as sampling does.
+    pub(crate) fn push_step(
+        &mut self,
+        strategy: StrategyRef<'s, V>,
+        out: &mut SmallVec<[V; 2]>,
+        density: Density,
+    ) {
         let start = self.vertices.len();
         let arity = out.len();
         self.vertices.extend(out.drain(..));
@@ -599,7 +611,6 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 self.slots[start].chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
             }
         }
-        (StepKind::Vertex, measured)
     }
 
     /// The product of the densities of vertices `0..=i` under the

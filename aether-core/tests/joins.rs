@@ -7,8 +7,8 @@
 
 use aether_core::testing::{BidirectionalFixture, LookDown, TestScene, TestVertex};
 use aether_core::{
-    DynStrategy, Heuristic, Joins, PathDensity, Pcg32, RandomSequence, Split, Splits, StrategyRef,
-    weight_of_split, weights_of_split_variants,
+    DynStrategy, Heuristic, Join, Joins, PathDensity, Pcg32, RandomSequence, Split, Splits,
+    StrategyRef, weight_of_split, weights_of_split_variants,
 };
 
 fn one<'a>(s: &'a dyn DynStrategy<TestVertex>) -> StrategyRef<'a, TestVertex> {
@@ -55,24 +55,37 @@ fn joins_weigh_as_split_weights_do() {
                 if n < 2 {
                     continue;
                 }
-                let mut path = eye.slice(0..s);
-                match t {
-                    0 => {}
-                    1 if s >= 1 => {
-                        if !path.append_sample(&f.light, &mut rng) {
-                            continue;
-                        }
+                // The joined path, and the same join described by its parts.
+                // A light sample, drawn twice from one state of the
+                // generator: beside the eye and appended to its prefix.
+                let again = rng.clone();
+                let lamp = match t {
+                    1 if s >= 1 => eye.sample_after(s, &f.light, &mut rng),
+                    _ => None,
+                };
+                let path = match (t, &lamp) {
+                    (0, _) => eye.slice(0..s),
+                    (1, Some(_)) => {
+                        let mut path = eye.slice(0..s);
+                        assert!(path.append_sample(&f.light, &mut again.clone()));
+                        path
                     }
-                    1 => continue,
-                    _ => path = path.concat(&lights.slice(0..t).reversed()),
-                }
+                    (1, None) => continue,
+                    _ => eye.slice(0..s).concat(&lights.slice(0..t).reversed()),
+                };
+                let join = Join::new((&eye, s), (&lights, t), lamp.as_ref());
+                assert_eq!(join.len(), n);
+                assert!(join.vertices().zip(path.vertices()).all(|(a, b)| a == b));
                 let mut splits = Splits::new();
                 Split::bidirectional(n, Some(direct), None, counts.0, counts.1, &mut splits);
                 let h = Heuristic::POWER;
+                let what = format!("(s, t) = ({s}, {t})");
                 if s >= 2 {
                     let by_split = weight_of_split(&path, &camera, &light, &splits, s, h, None);
                     let by_joins = joins.weight(s, &path);
-                    close(by_joins, by_split, &format!("(s, t) = ({s}, {t})"));
+                    close(by_joins, by_split, &what);
+                    let by_parts = joins.join_weights(&join, s, 1, &[one(&f.look)]);
+                    close(by_parts[0], by_split, &format!("{what}, by its parts"));
                     shared += usize::from(by_joins.0 > 0.0 && by_joins.0 < 1.0);
                     checked[t.min(3)] += 1;
                 } else {
@@ -82,18 +95,21 @@ fn joins_weigh_as_split_weights_do() {
                         &path, &camera, &light, &splits, s, h, None, 1, &variants,
                     );
                     let by_joins = joins.weights(s, &path, 1, &variants);
-                    for (a, b) in by_joins.iter().zip(&by_split) {
-                        close(*a, *b, &format!("splat (s, t) = ({s}, {t})"));
+                    let by_parts = joins.join_weights(&join, s, 1, &variants);
+                    for ((a, b), c) in by_joins.iter().zip(&by_split).zip(&by_parts) {
+                        close(*a, *b, &format!("splat {what}"));
+                        close(*c, *b, &format!("splat {what}, by its parts"));
                         shared += usize::from(a.0 > 0.0 && a.0 < 1.0);
                     }
                     assert_eq!(by_joins.len(), by_split.len());
+                    assert_eq!(by_parts.len(), by_split.len());
                     checked[3] += 1;
                 }
             }
         }
-        // Every join took the shortcut.
+        // Every join took the shortcut, from its path and from its parts.
         let joined = checked.iter().sum::<usize>();
-        assert_eq!(joins.shortcuts(), joined - weighed, "sample {sample}");
+        assert_eq!(joins.shortcuts(), 2 * (joined - weighed), "sample {sample}");
         weighed = joined;
     }
     // Every kind of join was met, and often, and many weights are shared

@@ -12,7 +12,7 @@
 //! no more than a list of strategies ([`aether_core::weight_of_split`]).
 
 use aether_core::{
-    DynStrategy, Heuristic, INLINE_VERTICES, Joins, RandomSequence, Sometimes, StrategyRef,
+    DynStrategy, Heuristic, INLINE_VERTICES, Join, Joins, RandomSequence, Sometimes, StrategyRef,
 };
 use aether_strategies::bsdf::Transport;
 use aether_strategies::camera::{Camera, CameraDirection, CameraPosition};
@@ -345,7 +345,6 @@ struct Run<'r, 'j, 'a, 's> {
     pixel: [u32; 2],
     rng: &'r mut Rng<'r>,
     splats: &'r mut Splats,
-    path: Path<'a>,
     seeds: Option<&'r mut Vec<SeedPath>>,
     /// The one light-prefix length to join, if not all.
     only: Option<usize>,
@@ -357,16 +356,22 @@ struct Run<'r, 'j, 'a, 's> {
 
 impl<'r, 'j, 'a, 's> Run<'r, 'j, 'a, 's> {
     /// The camera's importance for pixel `pixel` and the first ray of
-    /// `self.path`, leaving the lens in direction `d`; `own`, for the
-    /// sample's own pixel, whose connections all share their first ray, is
-    /// found once per sample.
-    fn importance(&mut self, camera: &Camera, pixel: [u32; 2], d: Vec3, own: bool) -> f64 {
-        let v = self.path.vertices();
-        let ray = (v[0].position, v[1].position);
+    /// `join`, leaving the lens in direction `d`; `own`, for the sample's
+    /// own pixel, whose connections all share their first ray, is found
+    /// once per sample.
+    fn importance(
+        &mut self,
+        camera: &Camera,
+        (pixel, join): ([u32; 2], &Join<'_, '_, SceneVertex>),
+        d: Vec3,
+        own: bool,
+    ) -> f64 {
+        let lens = join.vertex(0);
+        let ray = (lens.position, join.vertex(1).position);
         match self.importance {
             Some((a, b, w)) if own && (a, b) == ray => w,
             _ => {
-                let w = camera.importance(pixel, &v[0], d);
+                let w = camera.importance(pixel, lens, d);
                 if own {
                     self.importance = Some((ray.0, ray.1, w));
                 }
@@ -388,7 +393,6 @@ impl<'r, 'j, 'a, 's> Run<'r, 'j, 'a, 's> {
             pixel,
             rng,
             splats,
-            path: RandomSequence::new(),
             seeds,
             only: None,
             importance: None,
@@ -412,22 +416,19 @@ impl<'s> Bdpt<'s> {
     ) -> DVec3 {
         let (mut radiance, open, only) = (DVec3::ZERO, side.connectible(n - 1), run.only);
         let all = 0..=lamp.len().max(1).min(self.max_vertices - n);
-        // The camera side is copied once; each light prefix replaces the last one's.
-        run.path.clear().extend_from(head, 0..n, false);
         for t in all.filter(|t| only.is_none_or(|o| o == *t)) {
-            run.path.truncate(n);
-            let through = match t {
-                0 => side.emitted(n),
-                1 if open && run.path.append_sample(&run.kit.direct, run.rng) => {
-                    side.connect_lamp(n, &run.path.vertices()[n])
-                }
-                2.. if open && lamp.connectible(t - 1) => side.connect(n, lamp, t),
+            let aside = match t {
+                1 if open => head.sample_after(n, &run.kit.direct, run.rng),
+                _ => None,
+            };
+            let through = match (t, &aside) {
+                (0, _) => side.emitted(n),
+                (1, Some(l)) => side.connect_lamp(n, &l.vertex),
+                (2.., _) if open && lamp.connectible(t - 1) => side.connect(n, lamp, t),
                 _ => continue,
             };
-            if t >= 2 && through != DVec3::ZERO {
-                run.path.extend_from(light, 0..t, true);
-            }
-            radiance += self.contribute(run, own, through);
+            let join = Join::new((head, n), (light, t), aside.as_ref());
+            radiance += self.contribute(run, own, through, &join);
         }
         radiance
     }
@@ -440,33 +441,36 @@ impl<'s> Bdpt<'s> {
         run: &mut Run<'_, '_, 'a, 's>,
         own: Split,
         through: DVec3,
+        join: &Join<'_, 'a, SceneVertex>,
     ) -> DVec3 {
         // Occluded or black paths need no weight.
         if through == DVec3::ZERO {
             return DVec3::ZERO;
         }
-        let (lens, v) = (run.path.vertices()[0], run.path.vertices());
-        let d = lens.direction_to(&v[1]).unwrap_or(Vec3::Z);
+        let lens = join.vertex(0);
+        let d = lens.direction_to(join.vertex(1)).unwrap_or(Vec3::Z);
         let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
         let at = |j| (j, self.camera.direction(self.scene, j));
         let pixels: SmallVec<[_; 16]> = match splat {
-            true => self.camera.pixels_toward(&lens, d).map(at).collect(),
+            true => self.camera.pixels_toward(lens, d).map(at).collect(),
             false => [(run.pixel, run.kit.look)].into_iter().collect(),
         };
         // The sample's own pixel is weighed by its own strategy, no variant.
         let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
         let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
-        let weights = run.joins.weights(own.index(v.len()), &run.path, 1, &looks);
+        let weights = run
+            .joins
+            .join_weights(join, own.index(join.len()), 1, &looks);
         let mut seen = DVec3::ZERO;
         for (&(j, _), &(w, p)) in pixels.iter().zip(&weights) {
             let p = p.value();
-            let unweighted = through * run.importance(&self.camera, j, d, !splat) / p;
+            let unweighted = through * run.importance(&self.camera, (j, join), d, !splat) / p;
             match unweighted * w {
                 e if p <= 0.0 || !e.is_finite() => {}
                 e if splat => run.splats.push((j, e.as_vec3())),
                 e => seen = e,
             }
-            self.observe(run, (own, j, splat), unweighted, w, p);
+            self.observe(run, (own, j, splat), join, unweighted, w, p);
         }
         seen
     }
@@ -481,8 +485,8 @@ impl<'s> Bdpt<'s> {
         if light.vertices().last().is_none_or(|v| v.site != Site::Lens) {
             return DVec3::ZERO;
         }
-        run.path.clear().extend_from(light, 0..light.len(), true);
-        self.contribute(run, Split::Bdpt(0), lamp.product(light.len() - 1))
+        let join = Join::new((light, 0), (light, light.len()), None);
+        self.contribute(run, Split::Bdpt(0), lamp.product(light.len() - 1), &join)
     }
 
     /// What the outputs beside the image see of each estimate: the (s, t)
@@ -492,6 +496,7 @@ impl<'s> Bdpt<'s> {
         &self,
         run: &mut Run<'_, '_, '_, 's>,
         (own, j, splat): (Split, [u32; 2], bool),
+        join: &Join<'_, '_, SceneVertex>,
         unweighted: DVec3,
         w: f64,
         p: f64,
@@ -500,18 +505,17 @@ impl<'s> Bdpt<'s> {
         if p <= 0.0 || w == 0.0 || !weighted.is_finite() {
             return;
         }
-        let v = run.path.vertices();
         if let (Some(images), Split::Bdpt(s)) = (&self.images, own) {
-            images.add(s, v.len() - s, j, weighted, unweighted, splat);
+            images.add(s, join.len() - s, j, weighted, unweighted, splat);
         }
         if let Some(seeds) = run.seeds.as_deref_mut().filter(|_| weighted != DVec3::ZERO) {
             // A splatted path reaches several pixels in turn: one seed.
             match seeds.last_mut() {
-                Some(last) if splat && last.splat && last.vertices[..] == v[..] => {
+                Some(last) if splat && last.splat && last.vertices.iter().eq(join.vertices()) => {
                     last.weighted += weighted;
                 }
                 _ => seeds.push(SeedPath {
-                    vertices: v.iter().copied().collect(),
+                    vertices: join.vertices().copied().collect(),
                     weighted,
                     splat,
                 }),
