@@ -208,19 +208,14 @@ pub(crate) fn factor<V: Vertex>(
     let len = if reversed { n - 1 - i } else { i };
     let m = strategy.memory().min(len);
     let class = strategy.depth_class(len) as u32;
-    let here = place(s, n, i);
+    // The strategy remembers vertices first..first + m: kept by vertex i
+    // if they lie on its side of the join.
     let first = if reversed { i + 1 } else { i - m };
-    let one_side = (first..first + m).all(|j| {
-        matches!(
-            (place(s, n, j), here),
-            (Place::Eye(_), Place::Eye(_)) | (Place::Light(_), Place::Light(_))
-        )
-    });
-    let kept = match here {
-        _ if !one_side || tag == VARYING => None,
-        Place::Eye(k) => eye_kept.get_mut(k),
-        Place::Light(k) => light_kept.get_mut(k),
-        Place::Lamp => None,
+    let kept = match place(s, n, i) {
+        _ if tag == VARYING => None,
+        Place::Eye(k) if first + m <= s => eye_kept.get_mut(k),
+        Place::Light(k) if first >= s => light_kept.get_mut(k),
+        _ => None,
     };
     if let Some(d) = kept.as_ref().and_then(|k| k.get(tag, class)) {
         return d;
