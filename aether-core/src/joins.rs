@@ -102,11 +102,10 @@ impl<'a, 's, V: Vertex> Join<'a, 's, V> {
         (0..self.len()).map(|i| self.vertex(i))
     }
 
-    /// The joined path, with the strategies and recorded densities of its
-    /// parts (the light sample's by `direct`).
-    fn path(&self, direct: Option<StrategyRef<'s, V>>) -> RandomSequence<'s, V> {
-        let mut path = RandomSequence::new();
-        path.extend_from(self.head, 0..self.n, false);
+    /// Appends to `path`, the camera side, the rest of the joined path,
+    /// with the strategies and recorded densities of its parts (the light
+    /// sample's by `direct`).
+    fn extend(&self, path: &mut RandomSequence<'s, V>, direct: Option<StrategyRef<'s, V>>) {
         match (self.lamp, direct) {
             (Some(l), Some(d)) => {
                 path.push_step(d, &mut SmallVec::from_elem(l.vertex.clone(), 1), l.density)
@@ -115,7 +114,6 @@ impl<'a, 's, V: Vertex> Join<'a, 's, V> {
                 path.extend_from(self.light, 0..self.t, true);
             }
         }
-        path
     }
 }
 
@@ -177,6 +175,8 @@ pub struct Joins<'p, 's, V: Recycle> {
     short: bool,
     /// Weights found from the kept densities so far.
     shortcuts: usize,
+    /// The last joined path built for `weight_of_split`.
+    built: std::cell::RefCell<RandomSequence<'s, V>>,
 }
 
 impl<V: Recycle> std::fmt::Debug for Joins<'_, '_, V> {
@@ -222,6 +222,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
             id: fresh_id(),
             short,
             shortcuts: 0,
+            built: std::cell::RefCell::new(RandomSequence::new()),
         }
     }
 
@@ -279,11 +280,17 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
                 return w;
             }
         }
-        let path = join.path(self.direct);
-        match variants {
-            None => self.weigh_any(own, &path, None),
-            Some((at, v)) => self.weigh_any(own, &path, Some((at, v))),
+        // The joined path, its camera side kept for the next join of the
+        // same one (building it for each join cost tridirectional tracing 8
+        // % of its speed).
+        let mut built = self.built.borrow_mut();
+        if built.same_prefix(join.head, join.n) {
+            built.truncate(join.n);
+        } else {
+            built.clear().extend_from(join.head, 0..join.n, false);
         }
+        join.extend(&mut built, self.direct);
+        self.by_splits(own, &built, variants)
     }
 
     /// How many weights came from the densities the vertices keep (the
@@ -307,19 +314,23 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
                 return w;
             }
         }
+        self.by_splits(own, path, variants)
+    }
+
+    /// The weights of `path` from `weight_of_split` over the techniques'
+    /// splits, with the sample's factors cached with its densities (none
+    /// for a weight inside a weight, which finds the store in use).
+    fn by_splits(
+        &self,
+        own: usize,
+        path: &RandomSequence<'_, V>,
+        variants: Option<(usize, &[StrategyRef<'_, V>])>,
+    ) -> SmallVec<[(f64, PathDensity); 16]> {
         let mut splits = Splits::new();
-        let (direct, portal) = (self.direct, self.portal);
-        Split::bidirectional(
-            n,
-            direct,
-            portal,
-            self.splats,
-            self.through_lens,
-            &mut splits,
-        );
+        let (n, direct, portal) = (path.len(), self.direct, self.portal);
+        let counts = (self.splats, self.through_lens);
+        Split::bidirectional(n, direct, portal, counts.0, counts.1, &mut splits);
         let (camera, light, h) = (&self.camera[..], &self.emitter[..], self.heuristic);
-        // The sample's factors are cached with its densities (none for a
-        // weight inside a weight, which finds the store in use).
         STORE.with(|store| {
             let mut store = store.try_borrow_mut().ok();
             if let Some(store) = store.as_mut().filter(|s| s.owner != self.id) {

@@ -566,6 +566,17 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         (StepKind::Vertex, measured)
     }
 
+    /// True if this sequence's first `n` vertices are `other`'s (the same
+    /// sampled vertices, by identity).
+    pub(crate) fn same_prefix(&self, other: &Self, n: usize) -> bool {
+        n <= self.len()
+            && n <= other.len()
+            && self.slots[..n]
+                .iter()
+                .zip(&other.slots[..n])
+                .all(|(a, b)| a.id == b.id)
+    }
+
     /// Appends the vertices `out` that `strategy` sampled after this
     /// sequence's with `density`, recording it as sampling does.
     pub(crate) fn push_step(
