@@ -108,9 +108,13 @@ impl<'a, 's, V: Vertex> Join<'a, 's, V> {
     fn extend(&self, path: &mut RandomSequence<'s, V>, direct: Option<StrategyRef<'s, V>>) {
         match (self.lamp, direct) {
             (Some(l), Some(d)) => {
-                path.push_step(d, &mut SmallVec::from_elem(l.vertex.clone(), 1), l.density)
+                path.push_step(d, &mut SmallVec::from_elem(l.vertex.clone(), 1), l.density);
             }
-            _ => {
+            // A light sample with no direct step to have sampled it: given.
+            (Some(l), None) => {
+                path.extend_from(&RandomSequence::given([l.vertex.clone()]), 0..1, false);
+            }
+            (None, _) => {
                 path.extend_from(self.light, 0..self.t, true);
             }
         }
