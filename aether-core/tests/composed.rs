@@ -87,8 +87,9 @@ impl Strategy<TestVertex> for RouletteBounce<'_> {
             Intersect::new(x, InFrame::new(frame, CosineHemisphere), self.0),
         )
     }
+    // The side it turns to reads the vertex before the last.
     fn memory(&self) -> usize {
-        1
+        2
     }
 }
 

@@ -301,3 +301,40 @@ fn misstated_memory_fails_the_mis_check() {
     )
     .unwrap();
 }
+
+/// A bounce that turns to the side its path came from (reading the vertex
+/// before last) but states a memory of one vertex.
+struct Shortsighted<'s>(aether_core::testing::Bounce<'s>);
+
+impl aether_core::Strategy<aether_core::testing::TestVertex> for Shortsighted<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: aether_core::Prefix<'a, aether_core::testing::TestVertex>,
+    ) -> impl Distribution<Value = aether_core::Step<aether_core::testing::TestVertex>> + 'a {
+        aether_core::Strategy::distribution(&self.0, prefix)
+    }
+    fn memory(&self) -> usize {
+        1
+    }
+}
+
+#[test]
+fn misstated_memory_fails_the_strategy_check() {
+    use aether_core::harness::check_strategy;
+    use aether_core::testing::{Bounce, SphereChart, TestScene, TestVertex};
+    let scene = TestScene::open_box();
+    // A point on the sphere seen from its centre: the bounce turns inward,
+    // which the stated memory (the point alone) cannot see.
+    let (center, radius, sphere) = (Vec3::new(0.4, 0.3, 0.35), 0.35, 6);
+    let on = scene.vertex_on(sphere, center + Vec3::new(0.0, 0.0, radius));
+    let prefix = [TestVertex::point(center), on];
+    let chart = Grid::new(SphereChart::new(&scene, sphere), 8);
+    let shortsighted = Shortsighted(Bounce::new(&scene));
+    let failure = check_strategy(&shortsighted, &prefix, &chart, &Check::default())
+        .expect_err("the misstated memory must show");
+    assert!(
+        matches!(failure, Failure::Memory { memory: 1, .. }),
+        "{failure}"
+    );
+    println!("{failure}");
+}

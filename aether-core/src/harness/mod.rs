@@ -194,6 +194,18 @@ pub enum Failure {
         /// The integral.
         integral: f64,
     },
+    /// A strategy's density given only the vertices it states it remembers
+    /// differs from its density given the whole prefix.
+    Memory {
+        /// The memory the strategy states.
+        memory: usize,
+        /// The value.
+        value: String,
+        /// Its density given the whole prefix.
+        whole: String,
+        /// Its density given the remembered vertices.
+        nearest: String,
+    },
 }
 
 impl fmt::Display for Failure {
@@ -251,6 +263,15 @@ impl fmt::Display for Failure {
             Failure::IntegralAboveOne { integral } => {
                 write!(f, "(c) the density integrates to {integral:.6} > 1")
             }
+            Failure::Memory {
+                memory,
+                value,
+                whole,
+                nearest,
+            } => write!(
+                f,
+                "the strategy states a memory of {memory} vertices, but its density of {value} is {nearest} given those and {whole} given the whole prefix"
+            ),
         }
     }
 }
@@ -316,7 +337,11 @@ where
 }
 
 /// Runs every check on `strategy` conditioned on the vertices `prefix`
-/// (in path order, the last one most recent).
+/// (in path order, the last one most recent), and checks the memory it
+/// states: its density of each of `config.cases` samples is the same given
+/// only its [`memory`](Strategy::memory) nearest vertices (and the
+/// prefix's length) as given the whole prefix, as the density cache and
+/// [`Joins`](crate::Joins) assume.
 pub fn check_strategy<V, S>(
     strategy: &S,
     prefix: &[V],
@@ -327,9 +352,52 @@ where
     V: Vertex + fmt::Debug,
     S: Strategy<V>,
 {
-    check(
-        &strategy.distribution(Prefix::forward(prefix)),
-        chart,
-        config,
-    )
+    let whole = strategy.distribution(Prefix::forward(prefix));
+    // First: a misstated memory makes every MIS weight suspect.
+    check_memory(strategy, prefix, &whole, config)?;
+    let report = check(&whole, chart, config)?;
+    Ok(report)
+}
+
+/// The memory check of [`check_strategy`]. A strategy that reads a vertex
+/// it does not remember may also fail to find it (`expect` on a missing
+/// vertex): that panic is caught and reported as the misstated memory.
+fn check_memory<V, S, D>(
+    strategy: &S,
+    prefix: &[V],
+    whole: &D,
+    config: &Check,
+) -> Result<(), Failure>
+where
+    V: Vertex + fmt::Debug,
+    S: Strategy<V>,
+    D: Distribution<Value = Step<V>>,
+{
+    let m = strategy.memory().min(prefix.len());
+    let nearest = Prefix::nearest(&prefix[prefix.len() - m..], false, prefix.len());
+    let mut rng = crate::Pcg32::new(config.seed, 0x6d65_6d6f);
+    let mut u = vec![0.0; whole.dims()];
+    for _ in 0..config.cases {
+        crate::UniformSource::fill(&mut rng, &mut u);
+        let Some(sample) = whole.sample(&u) else {
+            continue;
+        };
+        let a = whole.density(&sample.value);
+        let b = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            strategy.distribution(nearest).density(&sample.value)
+        }));
+        let same = b.as_ref().is_ok_and(|b| {
+            (a.value() - b.value()).abs() <= 1e-12 * a.value().max(b.value())
+                && a.dirac_order() == b.dirac_order()
+        });
+        if !same {
+            return Err(Failure::Memory {
+                memory: m,
+                value: format!("{:?}", sample.value),
+                whole: a.to_string(),
+                nearest: b.map_or_else(|_| "a panic".to_string(), |b| b.to_string()),
+            });
+        }
+    }
+    Ok(())
 }
