@@ -9,7 +9,9 @@
 //! tracing adds, for every length, the paths that splice one portal segment
 //! between a camera prefix and a light prefix. Every path is weighed by MIS
 //! against every technique that could have produced it, each technique being
-//! no more than a list of strategies ([`aether_core::weight_of_split`]).
+//! no more than a list of strategies ([`aether_core::weight_of_split`]); the
+//! sample's [`aether_core::Joins`] find those weights from the two subpaths
+//! as sampled, without building the joined paths.
 
 use aether_core::{
     DynStrategy, Heuristic, INLINE_VERTICES, Join, Joins, RandomSequence, Sometimes, StrategyRef,
@@ -433,9 +435,9 @@ impl<'s> Bdpt<'s> {
         radiance
     }
 
-    /// The weighted estimate of `run.path`, sampled by `own`, whose
-    /// integrand without the camera's importance is `through`: returned if
-    /// the camera subpath chose the pixel, splatted otherwise.
+    /// The weighted estimate of `join`, sampled by `own`, whose integrand
+    /// without the camera's importance is `through`: returned if the
+    /// camera subpath chose the pixel, splatted otherwise.
     fn contribute<'a>(
         &'a self,
         run: &mut Run<'_, '_, 'a, 's>,
