@@ -15,7 +15,7 @@ use crate::kept::{CAMERA, DIRECT, Kept, LIGHT, STORE, Store, VARYING, View, chai
 use crate::mis::Heuristic;
 use crate::recycle::Recycle;
 use crate::sequence::{RandomSequence, Span, fresh_id};
-use crate::split::{Split, Splits, weight_of_split, weights_of_split_variants};
+use crate::split::{Split, Splits, samples_of, weight_of_split, weights_of_split_variants};
 use crate::strategy::StrategyRef;
 use crate::vertex::Vertex;
 
@@ -152,9 +152,20 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         at: usize,
         variants: &[StrategyRef<'_, V>],
     ) -> SmallVec<[(f64, PathDensity); 16]> {
+        let variants = self.varying(at, variants);
+        self.weigh_any(own, path, variants)
+    }
+
+    /// `variants` in place of the camera-side entry `at`, or none if the
+    /// one variant is that entry (the plain weight).
+    fn varying<'v>(
+        &self,
+        at: usize,
+        variants: &'v [StrategyRef<'v, V>],
+    ) -> Option<(usize, &'v [StrategyRef<'v, V>])> {
         match (variants, self.camera.get(at)) {
-            ([v], Some(c)) if v.same(c) => self.weigh_any(own, path, None),
-            _ => self.weigh_any(own, path, Some((at, variants))),
+            ([v], Some(c)) if v.same(c) => None,
+            _ => Some((at, variants)),
         }
     }
 
@@ -168,10 +179,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         at: usize,
         variants: &[StrategyRef<'_, V>],
     ) -> SmallVec<[(f64, PathDensity); 16]> {
-        let variants = match (variants, self.camera.get(at)) {
-            ([v], Some(c)) if v.same(c) => None,
-            _ => Some((at, variants)),
-        };
+        let variants = self.varying(at, variants);
         let same = |a: &RandomSequence<'s, V>, b: &RandomSequence<'s, V>| std::ptr::eq(a, b);
         let ours = (join.n == 0 || same(join.head, self.eye))
             && (join.t < 2 || join.lamp.is_some() || same(join.light, self.light));
@@ -422,12 +430,10 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
             });
         }
         let own = densities[s];
-        // Each technique's samples, as Split::bidirectional counts them.
+        // Each technique's samples, as Split::bidirectional counts them
+        // (one for all but the first two).
         for (k, p) in densities.iter_mut().enumerate().take(2) {
-            let samples = match k {
-                0 if !self.through_lens => 0.0,
-                _ => self.splats,
-            };
+            let samples = samples_of(k, self.splats, self.through_lens);
             if samples != 1.0 {
                 *p = p.times(Density::new(samples, Measure::Discrete));
             }

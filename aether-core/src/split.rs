@@ -99,11 +99,7 @@ impl<'s, V: Recycle> Split<'s, V> {
         through_lens: bool,
         splits: &mut Splits<'s, V>,
     ) {
-        let samples = |camera: usize| match camera {
-            0 if !through_lens => 0.0,
-            0 | 1 => splats,
-            _ => 1.0,
-        };
+        let samples = |camera: usize| samples_of(camera, splats, through_lens);
         // Pushed one by one: built from an iterator chain, with each
         // middle collected, the list cost BDPT 2 % of its instructions.
         let split = |camera: usize, first: Option<StrategyRef<'s, V>>, t: usize| {
@@ -172,6 +168,18 @@ pub fn weight_of_split<'s, V: Vertex>(
         count(densities, splits);
         (heuristic.weight(densities, own), density)
     })
+}
+
+/// The samples a bidirectional technique with `camera` vertices from the
+/// camera takes for each of the others' ([`Split::samples`]): `splats` for
+/// those splatted to any pixel (at most one camera vertex), none for a
+/// light path reaching a pinhole (`through_lens` false), one otherwise.
+pub(crate) fn samples_of(camera: usize, splats: f64, through_lens: bool) -> f64 {
+    match camera {
+        0 if !through_lens => 0.0,
+        0 | 1 => splats,
+        _ => 1.0,
+    }
 }
 
 /// Multiplies each technique's density by its number of samples, in place.

@@ -232,9 +232,11 @@ fn zero_density_samples_fail_the_agreement_check() {
     ));
 }
 
-/// A bounce that claims to read no conditioning vertex although it reads
-/// two: its densities are cached under keys that collide.
-struct Forgetful<'s>(aether_core::testing::Bounce<'s>);
+/// A bounce that states a memory (the number it holds) shorter than the
+/// two conditioning vertices it reads: with none, its densities are cached
+/// under keys that collide; with one, it turns to the side its path came
+/// from by a vertex it says it does not read.
+struct Forgetful<'s>(aether_core::testing::Bounce<'s>, usize);
 
 impl aether_core::Strategy<aether_core::testing::TestVertex> for Forgetful<'_> {
     fn distribution<'a>(
@@ -244,7 +246,7 @@ impl aether_core::Strategy<aether_core::testing::TestVertex> for Forgetful<'_> {
         self.0.distribution(prefix)
     }
     fn memory(&self) -> usize {
-        0
+        self.1
     }
 }
 
@@ -254,7 +256,7 @@ fn misstated_memory_fails_the_mis_check() {
     use aether_core::testing::{BidirectionalFixture, TestScene};
     let scene = TestScene::open_box();
     let f = BidirectionalFixture::new(&scene);
-    let forgetful = Forgetful(f.bounce);
+    let forgetful = Forgetful(f.bounce, 0);
     // Five vertices: the middle one has the same depth from either end, so
     // its forward and reversed densities share a key when the conditioning
     // vertices are left out of it.
@@ -302,22 +304,6 @@ fn misstated_memory_fails_the_mis_check() {
     .unwrap();
 }
 
-/// A bounce that turns to the side its path came from (reading the vertex
-/// before last) but states a memory of one vertex.
-struct Shortsighted<'s>(aether_core::testing::Bounce<'s>);
-
-impl aether_core::Strategy<aether_core::testing::TestVertex> for Shortsighted<'_> {
-    fn distribution<'a>(
-        &'a self,
-        prefix: aether_core::Prefix<'a, aether_core::testing::TestVertex>,
-    ) -> impl Distribution<Value = aether_core::Step<aether_core::testing::TestVertex>> + 'a {
-        aether_core::Strategy::distribution(&self.0, prefix)
-    }
-    fn memory(&self) -> usize {
-        1
-    }
-}
-
 #[test]
 fn misstated_memory_fails_the_strategy_check() {
     use aether_core::harness::check_strategy;
@@ -329,7 +315,7 @@ fn misstated_memory_fails_the_strategy_check() {
     let on = scene.vertex_on(sphere, center + Vec3::new(0.0, 0.0, radius));
     let prefix = [TestVertex::point(center), on];
     let chart = Grid::new(SphereChart::new(&scene, sphere), 8);
-    let shortsighted = Shortsighted(Bounce::new(&scene));
+    let shortsighted = Forgetful(Bounce::new(&scene), 1);
     let failure = check_strategy(&shortsighted, &prefix, &chart, &Check::default())
         .expect_err("the misstated memory must show");
     assert!(
