@@ -153,15 +153,16 @@ impl SceneVertex {
     /// infinity, its direction), or `None` if they coincide.
     #[must_use]
     pub fn direction_to(&self, other: &SceneVertex) -> Option<Vec3> {
-        match (other.site, self.site) {
-            (Site::Environment { direction } | Site::Distant { direction, .. }, _) => {
-                Some(direction)
-            }
-            (_, Site::Environment { direction } | Site::Distant { direction, .. }) => {
-                Some(-direction)
-            }
-            _ => (other.position - self.position).try_normalize(),
+        // By reference, one site at a time: matching the pair of sites by
+        // value copied both at every call (1.4 % of a path tracer's
+        // instructions), and most calls join two surface points.
+        if let Site::Environment { direction } | Site::Distant { direction, .. } = &other.site {
+            return Some(*direction);
         }
+        if let Site::Environment { direction } | Site::Distant { direction, .. } = &self.site {
+            return Some(-*direction);
+        }
+        (other.position - self.position).try_normalize()
     }
 
     /// True if the vertex lies at infinity.

