@@ -1,5 +1,5 @@
-//! Ray casting: a compressed wide BVH (obvhs, built in `bvh`) over every
-//! triangle, analytic spheres beside it (a few) or in it (more), the
+//! Ray casting: a compressed wide BVH (obvhs, built in `bvh`, its nodes
+//! decoded for traversal in `wide`) over every triangle, analytic spheres beside it (a few) or in it (more), the
 //! watertight triangle test, and ray origins offset by the rounding error
 //! of the hit point (no fixed epsilon).
 
@@ -7,11 +7,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::{DVec3, Vec2, Vec3};
-use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 
 use crate::mesh::{TriangleMesh, TrianglePlane, triangle_normal};
 use crate::watertight::{Edges, Shear};
+use crate::wide::{Tree, with_tree};
 
 /// An analytic sphere.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -135,7 +135,7 @@ pub struct Geometry {
     triangles: Vec<[Vec3; 3]>,
     normals: Vec<Vec3>,
     origins: Vec<(u32, u32)>,
-    bvh: Option<CwBvh>,
+    bvh: Option<Tree>,
     /// True if the spheres are few enough to be tested one by one beside
     /// the tree rather than in it.
     spheres_listed: bool,
@@ -197,7 +197,7 @@ impl Geometry {
             triangles,
             normals,
             origins,
-            bvh,
+            bvh: bvh.map(Tree::of),
             spheres_listed,
         }
     }
@@ -235,7 +235,7 @@ impl Geometry {
             let ray = bvh_ray(origin, dir, t_max);
             let mut hit = RayHit::none();
             let mut edges = Edges([0.0; 3], 1.0);
-            bvh.ray_traverse(ray, &mut hit, |r, id| {
+            with_tree!(bvh, tree => tree.ray_traverse(ray, &mut hit, |r, id| {
                 match shear.intersect(&self.triangles[id], 0.0, r.tmax) {
                     Some((t, e)) => {
                         edges = e;
@@ -243,7 +243,7 @@ impl Geometry {
                     }
                     None => f32::INFINITY,
                 }
-            });
+            }));
             if hit.t < t_max {
                 best = Some((hit.t, hit.primitive_id as usize, edges.barycentrics()));
             }
@@ -274,7 +274,8 @@ impl Geometry {
         let shear = Shear::new(origin, dir);
         let mut hit = RayHit::none();
         let mut edges = Edges([0.0; 3], 1.0);
-        bvh.ray_traverse(bvh_ray(origin, dir, t_max), &mut hit, |r, id| {
+        let ray = bvh_ray(origin, dir, t_max);
+        with_tree!(bvh, tree => tree.ray_traverse(ray, &mut hit, |r, id| {
             match self.tree_candidate(&shear, id, (origin, dir), r.tmax) {
                 Some((t, e)) => {
                     edges = e.unwrap_or(edges);
@@ -282,7 +283,7 @@ impl Geometry {
                 }
                 None => f32::INFINITY,
             }
-        });
+        }));
         if hit.t >= t_max {
             return None;
         }
@@ -335,11 +336,11 @@ impl Geometry {
         let Some(bvh) = &self.bvh else { return false };
         let shear = Shear::new(origin, dir);
         let ray = bvh_ray(origin, dir, t_max);
-        !bvh.ray_traverse_miss(ray, |r, id| {
+        !with_tree!(bvh, tree => tree.ray_traverse_miss(ray, |r, id| {
             shear
                 .intersect(&self.triangles[id], 0.0, r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
-        })
+        }))
     }
 
     /// As [`occluded`](Self::occluded) when the spheres are in the tree.
@@ -347,10 +348,11 @@ impl Geometry {
     fn tree_with_spheres_blocks(&self, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
         let Some(bvh) = &self.bvh else { return false };
         let shear = Shear::new(origin, dir);
-        !bvh.ray_traverse_miss(bvh_ray(origin, dir, t_max), |r, id| {
+        let ray = bvh_ray(origin, dir, t_max);
+        !with_tree!(bvh, tree => tree.ray_traverse_miss(ray, |r, id| {
             self.tree_candidate(&shear, id, (origin, dir), r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
-        })
+        }))
     }
 
     /// True if the segment between two surface points is unobstructed;

@@ -23,5 +23,6 @@ pub mod spectrum;
 pub mod subpath;
 pub mod vertex;
 mod watertight;
+mod wide;
 
 pub use aether_core as core;

@@ -1,0 +1,296 @@
+//! The BVH as rays read it: obvhs's compressed wide nodes with their
+//! children's quantized planes turned into floats once, when the tree is
+//! built, rather than at every node a ray visits; traversed by obvhs's own
+//! `traverse!` loop.
+//!
+//! A node stores each child's box as bytes on a grid of the node's box.
+//! obvhs's node test converts those 48 bytes to floats at every visit,
+//! about a sixth of a ray's instructions on the Cornell box. The floats
+//! here are those conversions' exact results, used in the same arithmetic
+//! in the same order, so the tree finds the same children in the same
+//! order as obvhs's test (this file's tests check it, node by node and ray
+//! by ray), and images stay the same to the bit. The price is memory: 288
+//! bytes a node instead of 80, so only trees of up to [`WIDE_NODES`] nodes
+//! are kept this way; larger ones keep obvhs's nodes (on grids of 200 000
+//! and a million triangles, decoded nodes rendered no faster).
+
+// `UVec2` is named by obvhs's `traverse!` loop.
+use glam::{UVec2, Vec3A, Vec4};
+use obvhs::cwbvh::CwBvh;
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::ray::{Ray, RayHit};
+
+/// Trees of up to this many nodes (tens of thousands of triangles) are
+/// decoded: under 5 MB.
+pub(crate) const WIDE_NODES: usize = 1 << 14;
+
+/// The smallest entry distance obvhs's node test accepts, which this test
+/// must share to find the same children.
+const NEAREST: f32 = 0.0001;
+
+/// A compressed node and its children's planes as floats. The first three
+/// fields are the ones obvhs's `traverse!` loop reads, by these names.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WideNode {
+    child_base_idx: u32,
+    primitive_base_idx: u32,
+    imask: u8,
+    node: CwBvhNode,
+    /// Per axis, the children's lower then upper planes, children 0–3 in
+    /// the first vector and 4–7 in the second.
+    planes: [[[Vec4; 2]; 2]; 3],
+}
+
+impl WideNode {
+    fn new(node: &CwBvhNode) -> Self {
+        let floats = |q: &[u8; 8]| {
+            let f = q.map(f32::from);
+            [
+                Vec4::new(f[0], f[1], f[2], f[3]),
+                Vec4::new(f[4], f[5], f[6], f[7]),
+            ]
+        };
+        WideNode {
+            child_base_idx: node.child_base_idx,
+            primitive_base_idx: node.primitive_base_idx,
+            imask: node.imask,
+            node: *node,
+            planes: [
+                [floats(&node.child_min_x), floats(&node.child_max_x)],
+                [floats(&node.child_min_y), floats(&node.child_max_y)],
+                [floats(&node.child_min_z), floats(&node.child_max_z)],
+            ],
+        }
+    }
+
+    /// The hit mask of obvhs's node test (`CwBvhNode::intersect_ray`): the
+    /// children the ray enters before `ray.tmax`, in the traversal order
+    /// that `oct_inv4` (the ray's octant) gives them.
+    #[inline(always)]
+    fn hits(&self, ray: &Ray, oct_inv4: u32) -> u32 {
+        let scale = self.node.compute_extent() * ray.inv_direction;
+        let start = (Vec3A::from(self.node.p) - ray.origin) * ray.inv_direction;
+        let negative = [
+            ray.direction.x < 0.0,
+            ray.direction.y < 0.0,
+            ray.direction.z < 0.0,
+        ];
+        let (child_bits, bit_index) = self.node.get_child_and_index_bits(oct_inv4);
+        let mut mask = 0;
+        for half in 0..2 {
+            // Entry and exit distances of the four children's slabs on one axis.
+            let slab = |axis: usize| {
+                let [lo, hi] = self.planes[axis].map(|p| p[half]);
+                let (near, far) = if negative[axis] { (hi, lo) } else { (lo, hi) };
+                let (a, b) = (Vec4::splat(scale[axis]), Vec4::splat(start[axis]));
+                (near * a + b, far * a + b)
+            };
+            let (x, y, z) = (slab(0), slab(1), slab(2));
+            let near = x.0.max(y.0.max(z.0)).max(Vec4::splat(NEAREST));
+            let far = x.1.min(y.1.min(z.1)).min(Vec4::splat(ray.tmax));
+            let entered = near.cmple(far).bitmask();
+            for j in 0..4 {
+                if entered & (1 << j) != 0 {
+                    let shift = 8 * (4 * half + j);
+                    let bits = ((child_bits >> shift) & 0xff) as u32;
+                    mask |= bits << (((bit_index >> shift) & 0xff) as u32);
+                }
+            }
+        }
+        mask
+    }
+}
+
+/// A tree of [`WideNode`]s: obvhs's traversal over decoded nodes.
+#[derive(Debug)]
+pub(crate) struct WideBvh {
+    nodes: Vec<WideNode>,
+}
+
+impl WideBvh {
+    /// The decoded nodes of `bvh`, if it is small enough to keep them.
+    pub(crate) fn of(bvh: &CwBvh) -> Option<Self> {
+        (bvh.nodes.len() <= WIDE_NODES).then(|| WideBvh {
+            nodes: bvh.nodes.iter().map(WideNode::new).collect(),
+        })
+    }
+
+    /// As `CwBvh::ray_traverse`: the closest primitive for which
+    /// `intersect` returns a distance below the ray's end, into `hit`.
+    #[inline(always)]
+    pub(crate) fn ray_traverse(
+        &self,
+        ray: Ray,
+        hit: &mut RayHit,
+        mut intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> bool {
+        let mut shortened = ray;
+        let mut state = obvhs::cwbvh::Traversal::default();
+        state.reinit(ray.direction);
+        let mut node;
+        obvhs::traverse!(self, node, state, node.hits(&shortened, state.oct_inv4), {
+            let t = intersect(&shortened, state.primitive_id as usize);
+            if t < shortened.tmax {
+                hit.primitive_id = state.primitive_id;
+                hit.t = t;
+                shortened.tmax = t;
+            }
+        });
+        hit.t < ray.tmax
+    }
+
+    /// As `CwBvh::ray_traverse_miss`: true if `intersect` finds no
+    /// primitive before the ray's end; stops at the first it finds.
+    #[inline(always)]
+    pub(crate) fn ray_traverse_miss(
+        &self,
+        ray: Ray,
+        mut intersect: impl FnMut(&Ray, usize) -> f32,
+    ) -> bool {
+        let mut state = obvhs::cwbvh::Traversal::default();
+        state.reinit(ray.direction);
+        let mut node;
+        let mut miss = true;
+        'found: {
+            obvhs::traverse!(self, node, state, node.hits(&ray, state.oct_inv4), {
+                if intersect(&ray, state.primitive_id as usize) < ray.tmax {
+                    miss = false;
+                    break 'found;
+                }
+            });
+        }
+        miss
+    }
+}
+
+/// A scene's tree: decoded where it is small, obvhs's own otherwise.
+#[derive(Debug)]
+pub(crate) enum Tree {
+    /// Up to [`WIDE_NODES`] nodes.
+    Wide(WideBvh),
+    /// Larger trees.
+    Compressed(CwBvh),
+}
+
+impl Tree {
+    /// The decoded tree of `bvh` if it is small, else `bvh` itself.
+    pub(crate) fn of(bvh: CwBvh) -> Self {
+        WideBvh::of(&bvh).map_or(Tree::Compressed(bvh), Tree::Wide)
+    }
+}
+
+/// `$body` with `$t` bound to the tree `$tree` (a `&Tree`), whichever its
+/// kind. The body is written once but compiled per kind, so that a
+/// primitive test written in it as a closure is a closure per traversal
+/// and inlines into it: one closure handed to both (through a method of
+/// `Tree`) stayed a call per candidate, which cost more than decoding the
+/// nodes saved.
+macro_rules! with_tree {
+    ($tree:expr, $t:ident => $body:expr) => {
+        match $tree {
+            $crate::wide::Tree::Wide($t) => $body,
+            $crate::wide::Tree::Compressed($t) => $body,
+        }
+    };
+}
+pub(crate) use with_tree;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn random_tree(seed: u64) -> (CwBvh, Vec<[Vec3; 3]>) {
+        let mut rng = aether_core::Pcg32::new(seed, 1);
+        let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+        let triangles: Vec<[Vec3; 3]> = (0..400)
+            .map(|_| {
+                let a = Vec3::new(u(), u(), u()) * 10.0 - 5.0;
+                [
+                    a,
+                    a + Vec3::new(u(), u(), u()),
+                    a + Vec3::new(u(), u(), u()),
+                ]
+            })
+            .collect();
+        let bvh = crate::bvh::build(&triangles, &[]).expect("a tree");
+        let ordered = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| triangles[i as usize])
+            .collect();
+        (bvh, ordered)
+    }
+
+    fn rays(seed: u64) -> Vec<Ray> {
+        let mut rng = aether_core::Pcg32::new(seed, 2);
+        let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+        (0..2000)
+            .map(|k| {
+                let o = Vec3::new(u(), u(), u()) * 14.0 - 7.0;
+                let mut d = (Vec3::new(u(), u(), u()) - 0.5).normalize();
+                // Axis-aligned directions and zero components too.
+                if k % 7 == 0 {
+                    d = Vec3::new(d.x, 0.0, d.z).normalize();
+                }
+                if k % 11 == 0 {
+                    d = Vec3::NEG_Y;
+                }
+                let t_max = if k % 3 == 0 { 4.0 } else { f32::INFINITY };
+                Ray::new(o.into(), (d + Vec3::ZERO).into(), 0.0, t_max)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_node_finds_the_children_obvhs_finds() {
+        let (bvh, _) = random_tree(5);
+        let wide = WideBvh::of(&bvh).expect("a small tree");
+        assert!(bvh.nodes.len() > 8);
+        for ray in rays(6) {
+            let oct = bvh.new_traversal(ray.direction).oct_inv4;
+            for (node, w) in bvh.nodes.iter().zip(&wide.nodes) {
+                assert_eq!(w.hits(&ray, oct), node.intersect_ray(&ray, oct));
+            }
+        }
+    }
+
+    #[test]
+    fn rays_find_what_obvhs_finds() {
+        let (bvh, triangles) = random_tree(7);
+        let wide = WideBvh::of(&bvh).expect("a small tree");
+        let test = |r: &Ray, id: usize| {
+            let [a, b, c] = triangles[id];
+            let tri = obvhs::triangle::Triangle {
+                v0: a.into(),
+                v1: b.into(),
+                v2: c.into(),
+            };
+            tri.intersect(r)
+        };
+        let mut hits = 0;
+        for ray in rays(8) {
+            let (mut ours, mut theirs) = (RayHit::none(), RayHit::none());
+            let found = wide.ray_traverse(ray, &mut ours, test);
+            assert_eq!(found, bvh.ray_traverse(ray, &mut theirs, test));
+            assert_eq!((ours.primitive_id, ours.t), (theirs.primitive_id, theirs.t));
+            assert_eq!(
+                wide.ray_traverse_miss(ray, test),
+                bvh.ray_traverse_miss(ray, test)
+            );
+            hits += usize::from(found);
+        }
+        assert!(hits > 100 && hits < 1900, "{hits} hits");
+    }
+
+    #[test]
+    fn large_trees_keep_obvhs_nodes() {
+        let (bvh, _) = random_tree(9);
+        assert!(matches!(Tree::of(bvh), Tree::Wide(_)));
+        let big = CwBvh {
+            nodes: vec![CwBvhNode::default(); WIDE_NODES + 1],
+            ..random_tree(9).0
+        };
+        assert!(matches!(Tree::of(big), Tree::Compressed(_)));
+    }
+}
