@@ -92,7 +92,28 @@ impl<'s> Bsdf<'s> {
         let Site::Surface { shape, .. } = v.site else {
             return None;
         };
-        let mut material = &scene.materials[scene.shapes[shape as usize].material];
+        let material = &scene.materials[scene.shapes[shape as usize].material];
+        if matches!(material, Material::TwoSided(_) | Material::BumpMap { .. })
+            || anisotropic(material)
+        {
+            return Some(Self::wrapped(scene, v, material));
+        }
+        Some(Bsdf {
+            material,
+            two_sided: false,
+            frame: Frame::from_normal(v.shading_normal),
+            geometric_normal: v.geometric_normal,
+            uv: v.uv,
+        })
+    }
+
+    /// [`at`](Self::at) for a material under two-sided or bump-map
+    /// wrappers, or an anisotropic one: out of line, so that the plain
+    /// case (built at every vertex, and again for every density of BSDF
+    /// sampling) compiles small.
+    #[cold]
+    #[inline(never)]
+    fn wrapped(scene: &'s Scene, v: &SceneVertex, mut material: &'s Material) -> Bsdf<'s> {
         let mut two_sided = false;
         let mut normal = v.shading_normal;
         loop {
@@ -108,7 +129,7 @@ impl<'s> Bsdf<'s> {
                 _ => break,
             }
         }
-        Some(Bsdf {
+        Bsdf {
             material,
             two_sided,
             // Only anisotropic lobes care where the tangent points.
@@ -119,7 +140,7 @@ impl<'s> Bsdf<'s> {
             },
             geometric_normal: v.geometric_normal,
             uv: v.uv,
-        })
+        }
     }
 
     /// The material (under any two-sided or bump-map wrappers).
