@@ -221,7 +221,15 @@ impl<'s> Bsdf<'s> {
             wi.z = -wi.z;
             wo.z = -wo.z;
         }
-        let f = eval_local(self.material, self.uv, wi, wo);
+        // The diffuse lobe here, the others out of line: inlined whole,
+        // the microfacet lobes made every evaluation pay for their frame.
+        let f = match self.material {
+            Material::Diffuse { reflectance } if wi.z > 0.0 && wo.z > 0.0 => {
+                rgb(reflectance.eval(self.uv.to_array())) / PI
+            }
+            Material::Diffuse { .. } => Vec3::ZERO,
+            material => eval_local(material, self.uv, wi, wo),
+        };
         f * (wi.z.abs() / cos_geometric)
     }
 
@@ -313,6 +321,7 @@ fn internal_diffuse_reflectance(eta: f32) -> f32 {
 
 /// The radiance BSDF f(wi → wo) in the shading frame: light arrives from
 /// `wi` and leaves along `wo`.
+#[inline(never)]
 fn eval_local(material: &Material, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
     let reflection = wi.z > 0.0 && wo.z > 0.0;
     match material {
