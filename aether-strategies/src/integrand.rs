@@ -125,6 +125,13 @@ impl<'a> Integrand<'a> {
         self.lights.emitted(light, toward)
     }
 
+    /// True if `v` lies on a light (what [`emitted`](Self::emitted) can
+    /// find nonzero).
+    #[must_use]
+    pub fn on_light(&self, v: &SceneVertex) -> bool {
+        self.lights.emitter_of(v).is_some()
+    }
+
     /// The camera's importance for pixel `pixel` along the first edge of
     /// `path` (zero for a path of fewer than two vertices).
     #[must_use]

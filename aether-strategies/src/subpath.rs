@@ -165,7 +165,8 @@ impl<'a> Subpath<'a> {
     /// when the last of them is on a light: zero otherwise.
     #[must_use]
     pub fn emitted(&self, s: usize) -> DVec3 {
-        if s < 2 || self.end != End::Camera {
+        // Most vertices are on no light: asked first, before the direction.
+        if s < 2 || self.end != End::Camera || !self.f.on_light(&self.vertices[s - 1]) {
             return DVec3::ZERO;
         }
         let v = &self.vertices[s - 1];
