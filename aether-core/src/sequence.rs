@@ -587,80 +587,65 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ) {
         let start = self.vertices.len();
         let arity = out.len();
+        debug_assert!((1..=2).contains(&arity), "a step samples one vertex or two");
+        // Each slot is built whole and pushed once: built in place field
+        // by field, a path tracer's step cost a quarter more here.
+        let ids = [fresh_id(), if arity == 2 { fresh_id() } else { 0 }];
+        let (recorded, chain) = self.record(strategy, start, ids[1], density);
+        let slot = |part: usize, recorded, chain| Slot {
+            strategy: Some(strategy),
+            reversed: false,
+            arity: arity as u8,
+            part: part as u8,
+            id: ids[part],
+            given: false,
+            recorded,
+            chain,
+        };
         if arity == 1 {
-            // The usual step: one slot, built whole and pushed once (built
-            // in place field by field, a path tracer's step cost 50 %
-            // more here).
-            let memory = strategy.memory();
-            let fresh = fresh_id();
-            let (recorded, chain) = if memory <= 2 {
-                let before = match start {
-                    0 => Some(PathDensity::ONE),
-                    _ => self.prefix_chain(start - 1),
-                };
-                let covers = u16::try_from(start + 1).ok();
-                let recorded = Recorded {
-                    by: strategy,
-                    class: strategy.depth_class(start) as u32,
-                    cond: self.ids_before(start, memory),
-                    partner: 0,
-                    density,
-                };
-                let chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
-                (Some(recorded), chain)
-            } else {
-                (None, None)
-            };
             if let Some(v) = out.pop() {
                 self.vertices.push(v);
             }
-            self.slots.push(Slot {
-                strategy: Some(strategy),
-                reversed: false,
-                arity: 1,
-                part: 0,
-                id: fresh,
-                given: false,
-                recorded,
-                chain,
-            });
-            return;
+            self.slots.push(slot(0, recorded, chain));
+        } else {
+            self.vertices.extend(out.drain(..));
+            self.slots.push(slot(0, recorded, None));
+            self.slots.push(slot(1, None, None));
         }
-        self.vertices.extend(out.drain(..));
-        for part in 0..arity {
-            self.slots.push(Slot {
-                strategy: Some(strategy),
-                reversed: false,
-                arity: arity as u8,
-                part: part as u8,
-                id: fresh_id(),
-                given: false,
-                recorded: None,
-                chain: None,
-            });
-        }
+    }
+
+    /// What a step's first slot records of the density `strategy` gave its
+    /// vertices, sampled after the first `start`, the second (if any)
+    /// being `partner`: the density with what it was conditioned on, if
+    /// the strategy's memory is short enough to match it, and for a step
+    /// of one vertex the running product it extends.
+    #[allow(clippy::type_complexity)]
+    fn record(
+        &self,
+        strategy: StrategyRef<'s, V>,
+        start: usize,
+        partner: u64,
+        density: Density,
+    ) -> (Option<Recorded<'s, V>>, Option<(PathDensity, u16)>) {
         let memory = strategy.memory();
-        if memory <= 2 {
-            self.slots[start].recorded = Some(Recorded {
-                by: strategy,
-                class: strategy.depth_class(start) as u32,
-                cond: self.ids_before(start, memory),
-                partner: if arity == 2 {
-                    self.slots[start + 1].id
-                } else {
-                    0
-                },
-                density,
-            });
-            if arity == 1 {
-                let before = match start {
-                    0 => Some(PathDensity::ONE),
-                    _ => self.prefix_chain(start - 1),
-                };
-                let covers = u16::try_from(start + 1).ok();
-                self.slots[start].chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
-            }
+        if memory > 2 {
+            return (None, None);
         }
+        let recorded = Recorded {
+            by: strategy,
+            class: strategy.depth_class(start) as u32,
+            cond: self.ids_before(start, memory),
+            partner,
+            density,
+        };
+        let before = match start {
+            _ if partner != 0 => None,
+            0 => Some(PathDensity::ONE),
+            _ => self.prefix_chain(start - 1),
+        };
+        let covers = u16::try_from(start + 1).ok();
+        let chain = before.zip(covers).map(|(p, c)| (p.times(density), c));
+        (Some(recorded), chain)
     }
 
     /// The product of the densities of vertices `0..=i` under the

@@ -1,7 +1,8 @@
 //! Ray casting: a compressed wide BVH (obvhs, built in `bvh`, its nodes
-//! decoded for traversal in `wide`) over every triangle, analytic spheres beside it (a few) or in it (more), the
-//! watertight triangle test, and ray origins offset by the rounding error
-//! of the hit point (no fixed epsilon).
+//! decoded for traversal in `wide`) over every triangle, analytic spheres
+//! beside it (a few) or in it (more), the watertight triangle test, and
+//! ray origins offset by the rounding error of the hit point (no fixed
+//! epsilon).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
