@@ -453,13 +453,15 @@ impl<'s> Bdpt<'s> {
         let d = lens.direction_to(join.vertex(1)).unwrap_or(Vec3::Z);
         let splat = matches!(own, Split::Bdpt(0 | 1) | Split::Portal(1));
         let at = |j| (j, self.camera.direction(self.scene, j));
-        let pixels: SmallVec<[_; 16]> = match splat {
-            true => self.camera.pixels_toward(lens, d).map(at).collect(),
-            false => [(run.pixel, run.kit.look)].into_iter().collect(),
+        // Lists filled in place: collected, each was returned by copy.
+        let (mut pixels, mut looks) = (SmallVec::<[_; 16]>::new(), SmallVec::<[_; 16]>::new());
+        match splat {
+            true => pixels.extend(self.camera.pixels_toward(lens, d).map(at)),
+            false => pixels.push((run.pixel, run.kit.look)),
         };
         // The sample's own pixel is weighed by its own strategy, no variant.
         let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
-        let looks: SmallVec<[_; 16]> = (0..pixels.len()).map(look).collect();
+        looks.extend((0..pixels.len()).map(look));
         let weights = run
             .joins
             .join_weights(join, own.index(join.len()), 1, &looks);
