@@ -243,7 +243,7 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         let (camera, light, h) = (&self.camera[..], &self.emitter[..], self.heuristic);
         STORE.with(|store| {
             let mut store = store.try_borrow_mut().ok();
-            if let Some(store) = store.as_mut().filter(|s| s.owner != self.id) {
+            if let Some(store) = store.as_mut() {
                 self.take(store);
             }
             let cache = store.as_mut().map(|s| &mut s.cache);
@@ -300,15 +300,17 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         // Another joins' store (a weight inside a weight) is left alone.
         STORE.with(|store| {
             let mut store = store.try_borrow_mut().ok()?;
-            if store.owner != self.id {
-                self.take(&mut store);
-            }
+            self.take(&mut store);
             self.weigh_in(&mut store, view, lamp, variants)
         })
     }
 
-    /// Makes `store` these joins': the subpaths' chains, nothing kept.
+    /// Makes `store` these joins' if it is another's: the subpaths'
+    /// chains, nothing kept.
     fn take(&self, store: &mut Store) {
+        if store.owner == self.id {
+            return;
+        }
         store.owner = self.id;
         store.cache.clear();
         chain(self.eye, &self.camera, &mut store.eye_chain);

@@ -615,8 +615,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     }
 
     /// What a step's first slot records of the density `strategy` gave its
-    /// vertices, sampled after the first `start`, the second (if any)
-    /// being `partner`: the density with what it was conditioned on, if
+    /// vertices, sampled after the first `start`, the second being
+    /// `partner` (0, an id never given, for a step of one vertex): the
+    /// density with what it was conditioned on, if
     /// the strategy's memory is short enough to match it, and for a step
     /// of one vertex the running product it extends.
     #[allow(clippy::type_complexity)]

@@ -355,8 +355,7 @@ where
     let whole = strategy.distribution(Prefix::forward(prefix));
     // First: a misstated memory makes every MIS weight suspect.
     check_memory(strategy, prefix, &whole, config)?;
-    let report = check(&whole, chart, config)?;
-    Ok(report)
+    check(&whole, chart, config)
 }
 
 /// The memory check of [`check_strategy`]. A strategy that reads a vertex

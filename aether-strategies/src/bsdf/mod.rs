@@ -27,7 +27,7 @@ pub use fresnel::{fresnel_conductor, fresnel_dielectric, fresnel_diffuse_reflect
 pub use lobes::Lobes;
 pub use microfacet::{normal_density, shadowing, smith_g1};
 
-use crate::scene::{Material, Roughness, Scene};
+use crate::scene::{Material, Roughness, Scene, Texture};
 use crate::vertex::{SceneVertex, Site};
 
 /// Which end of the path a sampled direction leads away from.
@@ -224,10 +224,7 @@ impl<'s> Bsdf<'s> {
         // The diffuse lobe here, the others out of line: inlined whole,
         // the microfacet lobes made every evaluation pay for their frame.
         let f = match self.material {
-            Material::Diffuse { reflectance } if wi.z > 0.0 && wo.z > 0.0 => {
-                rgb(reflectance.eval(self.uv.to_array())) / PI
-            }
-            Material::Diffuse { .. } => Vec3::ZERO,
+            Material::Diffuse { reflectance } => diffuse(reflectance, self.uv, wi, wo),
             material => eval_local(material, self.uv, wi, wo),
         };
         f * (wi.z.abs() / cos_geometric)
@@ -319,15 +316,24 @@ fn internal_diffuse_reflectance(eta: f32) -> f32 {
     })
 }
 
+/// The diffuse lobe's f(wi → wo) in the shading frame (zero unless both
+/// leave the front side).
+#[inline]
+fn diffuse(reflectance: &Texture, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
+    if wi.z > 0.0 && wo.z > 0.0 {
+        rgb(reflectance.eval(uv.to_array())) / PI
+    } else {
+        Vec3::ZERO
+    }
+}
+
 /// The radiance BSDF f(wi → wo) in the shading frame: light arrives from
 /// `wi` and leaves along `wo`.
 #[inline(never)]
 fn eval_local(material: &Material, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
     let reflection = wi.z > 0.0 && wo.z > 0.0;
     match material {
-        Material::Diffuse { reflectance } if reflection => {
-            rgb(reflectance.eval(uv.to_array())) / PI
-        }
+        Material::Diffuse { reflectance } => diffuse(reflectance, uv, wi, wo),
         Material::Conductor {
             ior,
             specular_reflectance,
