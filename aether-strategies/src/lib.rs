@@ -21,6 +21,7 @@ pub mod scattering;
 pub mod scene;
 pub mod spectrum;
 pub mod subpath;
+mod traversal;
 pub mod vertex;
 mod watertight;
 mod wide;

@@ -20,6 +20,8 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::{Ray, RayHit};
 
+use crate::traversal::{STACK, Walk};
+
 /// Trees of up to this many nodes (tens of thousands of triangles) are
 /// decoded: under 5 MB.
 pub(crate) const WIDE_NODES: usize = 1 << 14;
@@ -108,9 +110,10 @@ pub(crate) struct WideBvh {
 }
 
 impl WideBvh {
-    /// The decoded nodes of `bvh`, if it is small enough to keep them.
+    /// The decoded nodes of `bvh`, if it is small and shallow enough to
+    /// keep them.
     pub(crate) fn of(bvh: &CwBvh) -> Option<Self> {
-        (bvh.nodes.len() <= WIDE_NODES).then(|| WideBvh {
+        (bvh.nodes.len() <= WIDE_NODES && levels(bvh) <= STACK).then(|| WideBvh {
             nodes: bvh.nodes.iter().map(WideNode::new).collect(),
         })
     }
@@ -125,8 +128,7 @@ impl WideBvh {
         mut intersect: impl FnMut(&Ray, usize) -> f32,
     ) -> bool {
         let mut shortened = ray;
-        let mut state = obvhs::cwbvh::Traversal::default();
-        state.reinit(ray.direction);
+        let mut state = Walk::new(ray.direction);
         let mut node;
         obvhs::traverse!(self, node, state, node.hits(&shortened, state.oct_inv4), {
             let t = intersect(&shortened, state.primitive_id as usize);
@@ -147,8 +149,7 @@ impl WideBvh {
         ray: Ray,
         mut intersect: impl FnMut(&Ray, usize) -> f32,
     ) -> bool {
-        let mut state = obvhs::cwbvh::Traversal::default();
-        state.reinit(ray.direction);
+        let mut state = Walk::new(ray.direction);
         let mut node;
         let mut miss = true;
         'found: {
@@ -161,6 +162,22 @@ impl WideBvh {
         }
         miss
     }
+}
+
+/// The number of levels of nodes in `bvh` (its root alone: one).
+fn levels(bvh: &CwBvh) -> usize {
+    let mut deepest = 0;
+    let mut pending = vec![(0usize, 1usize)];
+    while let Some((i, level)) = pending.pop() {
+        let Some(node) = bvh.nodes.get(i) else {
+            continue;
+        };
+        deepest = deepest.max(level);
+        let first = node.child_base_idx as usize;
+        let children = node.imask.count_ones() as usize;
+        pending.extend((first..first + children).map(|c| (c, level + 1)));
+    }
+    deepest
 }
 
 /// A scene's tree: decoded where it is small, obvhs's own otherwise.
@@ -198,6 +215,7 @@ pub(crate) use with_tree;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::traversal::octant_inv4;
     use glam::Vec3;
 
     fn random_tree(seed: u64) -> (CwBvh, Vec<[Vec3; 3]>) {
@@ -249,6 +267,7 @@ mod tests {
         assert!(bvh.nodes.len() > 8);
         for ray in rays(6) {
             let oct = bvh.new_traversal(ray.direction).oct_inv4;
+            assert_eq!(octant_inv4(ray.direction), oct);
             for (node, w) in bvh.nodes.iter().zip(&wide.nodes) {
                 assert_eq!(w.hits(&ray, oct), node.intersect_ray(&ray, oct));
             }
@@ -292,5 +311,28 @@ mod tests {
             ..random_tree(9).0
         };
         assert!(matches!(Tree::of(big), Tree::Compressed(_)));
+    }
+
+    #[test]
+    fn deep_trees_keep_obvhs_nodes() {
+        let (bvh, _) = random_tree(9);
+        assert!((2..=STACK).contains(&levels(&bvh)));
+        // A chain of single children, one level more than the short stack allows.
+        let chain = |len: u32| CwBvh {
+            nodes: (0..len)
+                .map(|i| CwBvhNode {
+                    child_base_idx: i + 1,
+                    imask: u8::from(i + 1 < len),
+                    ..CwBvhNode::default()
+                })
+                .collect(),
+            ..random_tree(9).0
+        };
+        assert_eq!(levels(&chain(STACK as u32)), STACK);
+        assert!(matches!(Tree::of(chain(STACK as u32)), Tree::Wide(_)));
+        assert!(matches!(
+            Tree::of(chain(STACK as u32 + 1)),
+            Tree::Compressed(_)
+        ));
     }
 }

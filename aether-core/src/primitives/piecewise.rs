@@ -116,6 +116,11 @@ impl PiecewiseConstant2D {
     pub fn width(&self) -> usize {
         self.width
     }
+
+    /// True for a table of one cell: the uniform density on the square.
+    fn is_one_cell(&self) -> bool {
+        self.width == 1 && self.columns.len() == 1
+    }
 }
 
 impl Distribution for PiecewiseConstant2D {
@@ -124,6 +129,12 @@ impl Distribution for PiecewiseConstant2D {
         2
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec2>> {
+        if self.is_one_cell() {
+            // A box filter's table, at every camera sample: what the general
+            // path computes, without its row lookups.
+            let p = Vec2::new(below_one(u[0].max(0.0)), below_one(u[1].max(0.0)));
+            return Some(Sample::new(p, Density::new(1.0, Measure::Area)));
+        }
         let v = self.rows.sample(&u[1..2])?;
         let row = self.rows.cell_of(v.value)?;
         let x = self.columns[row].as_ref()?.sample(&u[0..1])?;
@@ -131,6 +142,10 @@ impl Distribution for PiecewiseConstant2D {
         Some(Sample::new(Vec2::new(x.value, v.value), p))
     }
     fn density(&self, p: &Vec2) -> Density {
+        if self.is_one_cell() {
+            let inside = (0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y);
+            return Density::new(if inside { 1.0 } else { 0.0 }, Measure::Area);
+        }
         let pv = self.rows.density(&p.y);
         let pu = self
             .rows
