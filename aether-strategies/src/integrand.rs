@@ -23,9 +23,13 @@ fn cosine(v: &SceneVertex, d: Vec3) -> f32 {
 /// distance for an edge to infinity.
 #[must_use]
 pub fn geometry_term(a: &SceneVertex, b: &SceneVertex) -> f32 {
-    let Some(d) = a.direction_to(b) else {
-        return 0.0;
-    };
+    a.direction_to(b)
+        .map_or(0.0, |d| geometry_term_along(a, b, d))
+}
+
+/// [`geometry_term`] for the edge's unit direction `d` from `a` to `b`
+/// (`a.direction_to(b)`), found once by a caller that also needs it.
+pub(crate) fn geometry_term_along(a: &SceneVertex, b: &SceneVertex, d: Vec3) -> f32 {
     let c = cosine(a, d) * cosine(b, -d);
     if a.is_at_infinity() || b.is_at_infinity() {
         c

@@ -6,7 +6,7 @@ use aether_core::{INLINE_VERTICES, Pooled};
 use glam::{DVec3, Vec3};
 
 use crate::bsdf::Bsdf;
-use crate::integrand::{Integrand, geometry_term};
+use crate::integrand::{Integrand, geometry_term_along};
 use crate::vertex::SceneVertex;
 
 /// The end of the path a subpath starts from.
@@ -125,25 +125,37 @@ impl<'a> Subpath<'a> {
         let n = self.vertices.len();
         let product = match n {
             0 => DVec3::ONE,
-            _ => {
-                let last = &self.vertices[n - 1];
-                let at_last = self.factor_at(n - 1, &v);
-                self.products[n - 1] * at_last * f64::from(geometry_term(last, &v))
-            }
+            _ => self.product_through(n - 1, &v),
         };
         self.bsdfs.push(Bsdf::at(self.f.scene(), &v));
         self.vertices.push(v);
         self.products.push(product);
     }
 
-    /// The factor of f at vertex `i` when `next` follows it on the way away
-    /// from this subpath's end: the BSDF value, or at a light's first vertex
-    /// its emission toward `next`.
-    fn factor_at(&self, i: usize, next: &SceneVertex) -> DVec3 {
+    /// The factors of f that the first `i + 1` vertices fix, followed by
+    /// `next`: their product, times the factor at `i`
+    /// ([`factor_toward`](Self::factor_toward)), times the edge's geometry term.
+    /// The edge's direction, which both need, is found once (each was a
+    /// square root and a division).
+    fn product_through(&self, i: usize, next: &SceneVertex) -> DVec3 {
+        self.vertices[i]
+            .direction_to(next)
+            .map_or(DVec3::ZERO, |out| self.product_along(i, next, out))
+    }
+
+    /// [`product_through`](Self::product_through) for the unit direction
+    /// `out` from vertex `i` to `next`.
+    #[inline(always)]
+    fn product_along(&self, i: usize, next: &SceneVertex, out: Vec3) -> DVec3 {
+        let g = geometry_term_along(&self.vertices[i], next, out);
+        self.products[i] * self.factor_toward(i, out) * f64::from(g)
+    }
+
+    /// The factor of f at vertex `i` when the vertex after it on the way
+    /// away from this subpath's end lies in unit direction `out`: the BSDF
+    /// value, or at a light's first vertex its emission along `out`.
+    fn factor_toward(&self, i: usize, out: Vec3) -> DVec3 {
         let v = &self.vertices[i];
-        let Some(out) = v.direction_to(next) else {
-            return DVec3::ZERO;
-        };
         if i == 0 {
             return match self.end {
                 End::Camera => DVec3::ONE,
@@ -182,12 +194,15 @@ impl<'a> Subpath<'a> {
     /// edge tested for visibility.
     #[must_use]
     pub fn connect(&self, s: usize, light: &Subpath<'_>, t: usize) -> DVec3 {
-        if t == 0 || light.end != End::Light {
+        if s == 0 || t == 0 || light.end != End::Light {
             return DVec3::ZERO;
         }
-        let l = &light.vertices[t - 1];
-        let c = &self.vertices[s.max(1) - 1];
-        self.join(s, l, light.factor_at(t - 1, c) * light.products[t - 1])
+        let (c, l) = (&self.vertices[s - 1], &light.vertices[t - 1]);
+        let Some((out, back)) = c.directions_between(l) else {
+            return DVec3::ZERO;
+        };
+        let beyond = light.factor_toward(t - 1, back) * light.products[t - 1];
+        self.join(s, l, out, beyond)
     }
 
     /// f(x̄) without importance for this camera subpath's first `s`
@@ -195,16 +210,8 @@ impl<'a> Subpath<'a> {
     /// emitter sampling), the edge to it tested for visibility.
     #[must_use]
     pub fn connect_lamp(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
-        self.join(s, lamp, self.lamp_radiance(s, lamp))
-    }
-
-    /// What `lamp` emits toward this subpath's vertex `s − 1`.
-    fn lamp_radiance(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
-        let c = &self.vertices[s.max(1) - 1];
-        let radiance = lamp
-            .direction_to(c)
-            .map_or(Vec3::ZERO, |d| self.f.emitted(lamp, d));
-        radiance.as_dvec3()
+        self.toward_lamp(s, lamp)
+            .map_or(DVec3::ZERO, |(out, beyond)| self.join(s, lamp, out, beyond))
     }
 
     /// As [`connect_lamp`](Self::connect_lamp) for an edge whose visibility
@@ -212,13 +219,25 @@ impl<'a> Subpath<'a> {
     /// it): no shadow ray is cast.
     #[must_use]
     pub fn connect_lamp_unoccluded(&self, s: usize, lamp: &SceneVertex) -> DVec3 {
-        self.unoccluded(s, lamp, self.lamp_radiance(s, lamp))
+        self.toward_lamp(s, lamp)
+            .map_or(DVec3::ZERO, |(out, beyond)| {
+                self.unoccluded(s, lamp, out, beyond)
+            })
+    }
+
+    /// The direction from this subpath's vertex `s − 1` to `lamp` (s ≥ 1),
+    /// and what `lamp` emits back along it.
+    fn toward_lamp(&self, s: usize, lamp: &SceneVertex) -> Option<(Vec3, DVec3)> {
+        let c = self.vertices.get(s.checked_sub(1)?)?;
+        let (out, back) = c.directions_between(lamp)?;
+        Some((out, self.f.emitted(lamp, back).as_dvec3()))
     }
 
     /// f(x̄) for the first `s` vertices joined to a light-side vertex `l`
-    /// whose factors of f beyond the edge multiply to `beyond`.
-    fn join(&self, s: usize, l: &SceneVertex, beyond: DVec3) -> DVec3 {
-        let f = self.unoccluded(s, l, beyond);
+    /// in direction `out` from the last of them, whose factors of f beyond
+    /// the edge multiply to `beyond`.
+    fn join(&self, s: usize, l: &SceneVertex, out: Vec3, beyond: DVec3) -> DVec3 {
+        let f = self.unoccluded(s, l, out, beyond);
         if f == DVec3::ZERO || !self.f.visible(&self.vertices[s - 1], l) {
             return DVec3::ZERO;
         }
@@ -226,11 +245,10 @@ impl<'a> Subpath<'a> {
     }
 
     /// As [`join`](Self::join), without the visibility test.
-    fn unoccluded(&self, s: usize, l: &SceneVertex, beyond: DVec3) -> DVec3 {
+    fn unoccluded(&self, s: usize, l: &SceneVertex, out: Vec3, beyond: DVec3) -> DVec3 {
         if s == 0 || self.end != End::Camera || beyond == DVec3::ZERO {
             return DVec3::ZERO;
         }
-        let c = &self.vertices[s - 1];
-        self.products[s - 1] * self.factor_at(s - 1, l) * f64::from(geometry_term(c, l)) * beyond
+        self.product_along(s - 1, l, out) * beyond
     }
 }

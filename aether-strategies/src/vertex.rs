@@ -165,6 +165,21 @@ impl SceneVertex {
         (other.position - self.position).try_normalize()
     }
 
+    /// The unit directions from this vertex to `other` and back: what
+    /// `self.direction_to(other)` and `other.direction_to(self)` give, with
+    /// one square root and division where both are points (the way back
+    /// is then the negated way there, to the bit: a − b is −(b − a)
+    /// exactly, and so is every step of the normalization).
+    #[must_use]
+    #[inline(always)]
+    pub fn directions_between(&self, other: &SceneVertex) -> Option<(Vec3, Vec3)> {
+        if self.is_at_infinity() || other.is_at_infinity() {
+            return self.direction_to(other).zip(other.direction_to(self));
+        }
+        let d = (other.position - self.position).try_normalize()?;
+        Some((d, -d))
+    }
+
     /// True if the vertex lies at infinity.
     #[must_use]
     pub fn is_at_infinity(&self) -> bool {
