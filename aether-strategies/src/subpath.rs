@@ -42,6 +42,9 @@ pub struct Subpath<'a> {
     end: End,
     vertices: Pooled<[SceneVertex; INLINE_VERTICES]>,
     bsdfs: Pooled<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
+    /// The unit direction from each vertex to the one before it (none for
+    /// the first): every BSDF value at the vertex needs it.
+    backs: Pooled<[Option<Vec3>; INLINE_VERTICES]>,
     products: Pooled<[DVec3; INLINE_VERTICES]>,
 }
 
@@ -54,6 +57,7 @@ impl<'a> Subpath<'a> {
             end,
             vertices: Pooled::new(),
             bsdfs: Pooled::new(),
+            backs: Pooled::new(),
             products: Pooled::new(),
         }
     }
@@ -116,35 +120,33 @@ impl<'a> Subpath<'a> {
     pub fn truncate(&mut self, len: usize) {
         self.vertices.truncate(len);
         self.bsdfs.truncate(len);
+        self.backs.truncate(len);
         self.products.truncate(len);
     }
 
     /// Appends a vertex sampled from the last one (its edge needs no
     /// visibility test).
     pub fn push(&mut self, v: SceneVertex) {
-        let n = self.vertices.len();
-        let product = match n {
-            0 => DVec3::ONE,
-            _ => self.product_through(n - 1, &v),
+        let (product, back) = match self.vertices.last() {
+            None => (DVec3::ONE, None),
+            // The edge's direction, which the factor at the last vertex,
+            // the geometry term and the new vertex's BSDF values all need,
+            // found once (each was a square root and a division).
+            Some(last) => match last.directions_between(&v) {
+                Some((out, back)) => (self.product_along(self.len() - 1, &v, out), Some(back)),
+                None => (DVec3::ZERO, None),
+            },
         };
         self.bsdfs.push(Bsdf::at(self.f.scene(), &v));
         self.vertices.push(v);
+        self.backs.push(back);
         self.products.push(product);
     }
 
-    /// The factors of f that the first `i + 1` vertices fix, followed by
-    /// `next`: their product, times the factor at `i`
-    /// ([`factor_toward`](Self::factor_toward)), times the edge's geometry term.
-    /// The edge's direction, which both need, is found once (each was a
-    /// square root and a division).
-    fn product_through(&self, i: usize, next: &SceneVertex) -> DVec3 {
-        self.vertices[i]
-            .direction_to(next)
-            .map_or(DVec3::ZERO, |out| self.product_along(i, next, out))
-    }
-
-    /// [`product_through`](Self::product_through) for the unit direction
-    /// `out` from vertex `i` to `next`.
+    /// The factors of f that the first `i + 1` vertices fix, followed by a
+    /// vertex `next` in unit direction `out` from vertex `i`: their
+    /// product, times the factor at `i` ([`factor_toward`](Self::factor_toward)),
+    /// times the edge's geometry term.
     #[inline(always)]
     fn product_along(&self, i: usize, next: &SceneVertex, out: Vec3) -> DVec3 {
         let g = geometry_term_along(&self.vertices[i], next, out);
@@ -162,8 +164,7 @@ impl<'a> Subpath<'a> {
                 End::Light => self.f.emitted(v, out).as_dvec3(),
             };
         }
-        let (Some(bsdf), Some(back)) = (&self.bsdfs[i], v.direction_to(&self.vertices[i - 1]))
-        else {
+        let (Some(bsdf), Some(back)) = (&self.bsdfs[i], self.backs[i]) else {
             return DVec3::ZERO;
         };
         let value = match self.end {
