@@ -18,6 +18,7 @@ pub struct InFrame<D> {
 
 impl<D: Distribution<Value = Vec3>> InFrame<D> {
     /// Directions of `inner` expressed in `frame`.
+    #[inline(always)]
     pub fn new(frame: Frame, inner: D) -> Self {
         InFrame { frame, inner }
     }

@@ -251,6 +251,7 @@ pub struct RussianRoulette<D> {
 
 impl<D> RussianRoulette<D> {
     /// Continues with probability `q` ∈ [0, 1].
+    #[inline(always)]
     pub fn new(q: f64, inner: D) -> Self {
         RussianRoulette {
             q: q.clamp(0.0, 1.0),

@@ -42,6 +42,7 @@ pub struct Intersect<'a, V, D, R> {
 
 impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a, V, D, R> {
     /// Rays from `from` along world directions drawn from `directions`.
+    #[inline(always)]
     pub fn new(from: &'a V, directions: D, scene: R) -> Self {
         Intersect {
             from,

@@ -83,6 +83,7 @@ impl Lobes {
     /// η_given-side is the relative index across the surface, and `mode` says
     /// which end of the path `given` leads to.
     #[must_use]
+    #[inline(always)]
     pub fn of(material: &Material, given: Vec3, eta: f32, mode: Transport) -> Lobes {
         let single = |lobe| Lobes {
             choice: DiscreteDistribution::new(&[1.0]).expect("one weight"),

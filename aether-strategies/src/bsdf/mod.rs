@@ -233,6 +233,7 @@ impl<'s> Bsdf<'s> {
     /// The distribution of the next direction for a path that arrived along
     /// `given` (a unit world direction pointing away from the surface).
     #[must_use]
+    #[inline(always)]
     pub fn sampling(&self, given: Vec3, mode: Transport) -> InFrame<Lobes> {
         let mut frame = self.frame;
         let mut local = frame.to_local(given);
