@@ -17,24 +17,24 @@ pub(crate) struct Shear {
 impl Shear {
     pub(crate) fn new(origin: Vec3, dir: Vec3) -> Self {
         let a = dir.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z { 0 } else { 2 }
+        // The dominant axis and the direction's component along it.
+        let (kz, dz) = if a.x > a.y {
+            if a.x > a.z { (0, dir.x) } else { (2, dir.z) }
         } else if a.y > a.z {
-            1
+            (1, dir.y)
         } else {
-            2
+            (2, dir.z)
         };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        let flip = dir[kz] < 0.0;
-        if flip {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        Shear {
+        let mut shear = Shear {
             origin,
-            order: 2 * kz as u8 + u8::from(flip),
-            s: Vec3::new(dir[kx] / dir[kz], dir[ky] / dir[kz], 1.0 / dir[kz]),
-        }
+            order: 2 * kz + u8::from(dz < 0.0),
+            s: Vec3::ZERO,
+        };
+        // (dir[kx], dir[ky], dir[kz]) by the swizzle the test uses:
+        // indexing by the axes costs a branch per index.
+        let d = shear.permute(dir);
+        shear.s = Vec3::new(d.x / d.z, d.y / d.z, 1.0 / d.z);
+        shear
     }
 
     /// (p[kx], p[ky], p[kz]) by swizzles: indexing a vector by a variable
