@@ -3,51 +3,47 @@
 //! the ray, and the edge functions of a hit, divided into barycentrics only
 //! for the hit a ray keeps.
 
-use glam::{Vec3, Vec3Swizzles};
+use glam::{Vec3, Vec3A};
 
 /// The per-ray setup of the watertight test (Woop, Benthin and Wald 2013).
 pub(crate) struct Shear {
-    origin: Vec3,
-    /// Which of the six axis orders (kx, ky, kz) the ray uses: kz the
-    /// dominant axis of the direction, kx and ky swapped where it is negative.
-    order: u8,
-    s: Vec3,
+    origin: Vec3A,
+    /// The columns of the map from a corner's offset d from the origin to
+    /// its sheared coordinates (d[kx] − Sx d[kz], d[ky] − Sy d[kz],
+    /// Sz d[kz]), with kz the dominant axis of the direction, kx and ky
+    /// swapped where it is negative. Applied as a matrix, not by permuting
+    /// each corner: a permutation chosen per ray was a jump through a
+    /// table at every corner, mispredicted on each new ray. The terms the
+    /// matrix adds are exact zeros and the others the test's own products,
+    /// so the coordinates are the same numbers (but for the sign of a
+    /// zero, which no decision of the test reads).
+    columns: [Vec3A; 3],
 }
 
 impl Shear {
     pub(crate) fn new(origin: Vec3, dir: Vec3) -> Self {
         let a = dir.abs();
-        // The dominant axis and the direction's component along it.
-        let (kz, dz) = if a.x > a.y {
-            if a.x > a.z { (0, dir.x) } else { (2, dir.z) }
+        let kz = if a.x > a.y {
+            if a.x > a.z { 0 } else { 2 }
         } else if a.y > a.z {
-            (1, dir.y)
+            1
         } else {
-            (2, dir.z)
+            2
         };
-        let mut shear = Shear {
-            origin,
-            order: 2 * kz + u8::from(dz < 0.0),
-            s: Vec3::ZERO,
-        };
-        // (dir[kx], dir[ky], dir[kz]) by the swizzle the test uses:
-        // indexing by the axes costs a branch per index.
-        let d = shear.permute(dir);
-        shear.s = Vec3::new(d.x / d.z, d.y / d.z, 1.0 / d.z);
-        shear
-    }
-
-    /// (p[kx], p[ky], p[kz]) by swizzles: indexing a vector by a variable
-    /// costs more than the rest of the test.
-    #[inline]
-    fn permute(&self, p: Vec3) -> Vec3 {
-        match self.order {
-            0 => p.yzx(),
-            1 => p.zyx(),
-            2 => p.zxy(),
-            3 => p.xzy(),
-            4 => p,
-            _ => p.yxz(),
+        let d = dir.to_array();
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        // Indexing arrays, not vectors (whose index is a branch per axis).
+        let s = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let mut columns = [Vec3A::ZERO; 3];
+        columns[kx] = Vec3A::X;
+        columns[ky] = Vec3A::Y;
+        columns[kz] = Vec3A::new(-s.x, -s.y, s.z);
+        Shear {
+            origin: origin.into(),
+            columns,
         }
     }
 
@@ -56,8 +52,12 @@ impl Shear {
     /// call cost path tracing 1.2 % more instructions.
     #[inline(always)]
     pub(crate) fn intersect(&self, v: &[Vec3; 3], t_min: f32, t_max: f32) -> Option<(f32, Edges)> {
-        let rel = v.map(|p| self.permute(p - self.origin));
-        let xy = rel.map(|p| (p.x - self.s.x * p.z, p.y - self.s.y * p.z));
+        let [cx, cy, cz] = self.columns;
+        let rel = v.map(|p| {
+            let d = Vec3A::from(p) - self.origin;
+            cx * d.x + cy * d.y + cz * d.z
+        });
+        let xy = rel.map(|p| (p.x, p.y));
         let (a, b, c) = (xy[0], xy[1], xy[2]);
         let mut u = c.0 * b.1 - c.1 * b.0;
         let mut w2 = a.0 * c.1 - a.1 * c.0;
@@ -76,7 +76,7 @@ impl Shear {
         if det == 0.0 {
             return None;
         }
-        let z = rel.map(|p| self.s.z * p.z);
+        let z = rel.map(|p| p.z);
         let t_scaled = u * z[0] + w2 * z[1] + w * z[2];
         let t = t_scaled / det;
         (t > t_min && t < t_max).then_some((t, Edges([u, w2, w], det)))
