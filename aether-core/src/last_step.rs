@@ -55,9 +55,12 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ) -> Option<Aside<V>> {
         let prefix = Prefix::forward(&self.vertices()[..len]);
         let mut out = SmallVec::<[V; 2]>::new();
-        let (kind, density) = strategy.sample_step(prefix, rng, &mut out);
-        let vertex = out.pop().filter(|_| kind == StepKind::Vertex)?;
-        Some(Aside { vertex, density })
+        let sampled = strategy.sample_step(prefix, rng, &mut out);
+        let vertex = out.pop().filter(|_| sampled.kind == StepKind::Vertex)?;
+        Some(Aside {
+            vertex,
+            density: sampled.density,
+        })
     }
 
     /// Appends `strategy` and samples it, as

@@ -404,8 +404,9 @@ impl<'m, V: Vertex> Mutator<'m, V> {
             Mode::Sample(rng) => {
                 let side = if light { &self.light } else { &self.eye };
                 let mut out = SmallVec::<[V; 2]>::new();
-                let (kind, density) =
+                let sampled =
                     strategy.sample_step(Prefix::forward(&side.vertices), &mut **rng, &mut out);
+                let (kind, density) = (sampled.kind, sampled.density);
                 if kind != StepKind::Vertex || density.is_zero() {
                     return None;
                 }

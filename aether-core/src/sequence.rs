@@ -548,7 +548,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ) -> (StepKind, Density) {
         let mut out = SmallVec::<[V; 2]>::new();
         let prefix = Prefix::forward(&self.vertices);
-        let ((kind, density), measured) = match (measure, strategy) {
+        let (sampled, measured) = match (measure, strategy) {
             (Some(other), StrategyRef::One(s)) => {
                 count_evaluation();
                 s.sample_step_measuring(prefix, rng, &mut out, other)
@@ -558,11 +558,13 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
                 Density::zero(Measure::Area),
             ),
         };
+        let (kind, density) = (sampled.kind, sampled.density);
         if kind != StepKind::Vertex {
             self.end = Some((kind, density));
             return (kind, measured);
         }
-        self.push_step(strategy, &mut out, density);
+        let known = (sampled.memory, sampled.class);
+        self.push_known_step(strategy, &mut out, density, known);
         (StepKind::Vertex, measured)
     }
 
@@ -586,12 +588,26 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         density: Density,
     ) {
         let start = self.vertices.len();
+        let known = (strategy.memory(), strategy.depth_class(start));
+        self.push_known_step(strategy, out, density, known);
+    }
+
+    /// As [`push_step`](Self::push_step), with the strategy's memory and
+    /// the depth class of the step (`known`) as its sampling reported them.
+    fn push_known_step(
+        &mut self,
+        strategy: StrategyRef<'s, V>,
+        out: &mut SmallVec<[V; 2]>,
+        density: Density,
+        (memory, class): (usize, usize),
+    ) {
+        let start = self.vertices.len();
         let arity = out.len();
         debug_assert!((1..=2).contains(&arity), "a step samples one vertex or two");
         // Each slot is built whole and pushed once: built in place field
         // by field, a path tracer's step cost a quarter more here.
         let ids = [fresh_id(), if arity == 2 { fresh_id() } else { 0 }];
-        let (recorded, chain) = self.record(strategy, start, ids[1], density);
+        let (recorded, chain) = self.record(strategy, (start, memory, class), ids[1], density);
         let slot = |part: usize, recorded, chain| Slot {
             strategy: Some(strategy),
             reversed: false,
@@ -614,8 +630,9 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         }
     }
 
-    /// What a step's first slot records of the density `strategy` gave its
-    /// vertices, sampled after the first `start`, the second being
+    /// What a step's first slot records of the density `strategy` (of
+    /// `memory`, the step in depth class `class`) gave its vertices,
+    /// sampled after the first `start`, the second being
     /// `partner` (0, an id never given, for a step of one vertex): the
     /// density with what it was conditioned on, if
     /// the strategy's memory is short enough to match it, and for a step
@@ -624,17 +641,16 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     fn record(
         &self,
         strategy: StrategyRef<'s, V>,
-        start: usize,
+        (start, memory, class): (usize, usize, usize),
         partner: u64,
         density: Density,
     ) -> (Option<Recorded<'s, V>>, Option<(PathDensity, u16)>) {
-        let memory = strategy.memory();
         if memory > 2 {
             return (None, None);
         }
         let recorded = Recorded {
             by: strategy,
-            class: strategy.depth_class(start) as u32,
+            class: class as u32,
             cond: self.ids_before(start, memory),
             partner,
             density,

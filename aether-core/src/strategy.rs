@@ -202,6 +202,24 @@ pub enum StepKind {
     Void,
 }
 
+/// What one step of a strategy produced, with what recording its density
+/// needs from the strategy: its memory and the depth class of the prefix
+/// it followed, read by the strategy's own code while sampling (asked
+/// through the strategy's table when the step was recorded, the two calls
+/// went to a different strategy at each step of a path and mispredicted
+/// almost every time).
+#[derive(Clone, Copy, Debug)]
+pub struct Sampled {
+    /// What the step produced.
+    pub kind: StepKind,
+    /// Its density (of the step's vertices if it produced them).
+    pub density: Density,
+    /// As [`Strategy::memory`].
+    pub memory: usize,
+    /// As [`Strategy::depth_class`] for the prefix's length.
+    pub class: usize,
+}
+
 /// The type-erased form of a [`Strategy`] that sequences store; implemented
 /// for every strategy, not meant to be implemented by hand.
 pub trait DynStrategy<V> {
@@ -219,7 +237,7 @@ pub trait DynStrategy<V> {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-    ) -> (StepKind, Density);
+    ) -> Sampled;
     /// The density of `target`.
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density;
     /// As [`sample_step`](Self::sample_step), and with it
@@ -234,7 +252,7 @@ pub trait DynStrategy<V> {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
         other: &V,
-    ) -> ((StepKind, Density), Density);
+    ) -> (Sampled, Density);
 }
 
 /// The type-erased form of a [`PairStrategy`]; implemented for every pair
@@ -254,7 +272,7 @@ pub trait DynPairStrategy<V> {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-    ) -> (StepKind, Density);
+    ) -> Sampled;
     /// The joint density of `first` and `second` (in sampling order).
     fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density;
 }
@@ -310,7 +328,7 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-    ) -> (StepKind, Density) {
+    ) -> Sampled {
         step(self, prefix, rng, out, None).0
     }
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
@@ -323,7 +341,7 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
         other: &V,
-    ) -> ((StepKind, Density), Density) {
+    ) -> (Sampled, Density) {
         step(self, prefix, rng, out, Some(other))
     }
 }
@@ -340,12 +358,20 @@ fn step<V: Vertex, S: Strategy<V> + ?Sized>(
     rng: &mut dyn UniformSource,
     out: &mut SmallVec<[V; 2]>,
     other: Option<&V>,
-) -> ((StepKind, Density), Density) {
+) -> (Sampled, Density) {
     let d = strategy.distribution(prefix);
     let other = other.map_or(Density::zero(Measure::Area), |v| {
         d.density(&Step::Vertex(v.clone()))
     });
-    (run(&d, rng, |v| out.push(v)), other)
+    let (kind, density) = run(&d, rng, |v| out.push(v));
+    let (memory, class) = (strategy.memory(), strategy.depth_class(prefix.len()));
+    let sampled = Sampled {
+        kind,
+        density,
+        memory,
+        class,
+    };
+    (sampled, other)
 }
 
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
@@ -366,11 +392,17 @@ impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-    ) -> (StepKind, Density) {
-        run(&self.distribution(prefix), rng, |(a, b)| {
+    ) -> Sampled {
+        let (kind, density) = run(&self.distribution(prefix), rng, |(a, b)| {
             out.push(a);
             out.push(b);
-        })
+        });
+        Sampled {
+            kind,
+            density,
+            memory: PairStrategy::memory(self),
+            class: PairStrategy::depth_class(self, prefix.len()),
+        }
     }
     fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density {
         self.distribution(prefix)
@@ -486,7 +518,7 @@ impl<V> StrategyRef<'_, V> {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-    ) -> (StepKind, Density) {
+    ) -> Sampled {
         match self {
             StrategyRef::One(s) => s.sample_step(prefix, rng, out),
             StrategyRef::Two(s) => s.sample_step(prefix, rng, out),
