@@ -202,12 +202,12 @@ pub enum StepKind {
     Void,
 }
 
-/// What one step of a strategy produced, with what recording its density
+/// What one step of a strategy produced, and what recording its density
 /// needs from the strategy: its memory and the depth class of the prefix
-/// it followed, read by the strategy's own code while sampling (asked
-/// through the strategy's table when the step was recorded, the two calls
-/// went to a different strategy at each step of a path and mispredicted
-/// almost every time).
+/// it followed, read by the strategy's own code while it sampled. (Asked
+/// through the strategy's table afterwards, these two calls went to a
+/// different strategy at each step of a path and mispredicted almost
+/// every time.)
 #[derive(Clone, Copy, Debug)]
 pub struct Sampled {
     /// What the step produced.
