@@ -63,7 +63,7 @@ impl<'a> Subpath<'a> {
     }
 
     /// The subpath from `end` through `vertices`. It is returned by value
-    /// (2 KB, copied): [`new`](Self::new) and [`extend`](Self::extend)
+    /// (about 2.5 KB, copied): [`new`](Self::new) and [`extend`](Self::extend)
     /// build it in place (a path tracer's 1 % of instructions).
     #[must_use]
     pub fn of(f: Integrand<'a>, end: End, vertices: &[SceneVertex]) -> Self {
