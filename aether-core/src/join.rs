@@ -14,8 +14,9 @@ use crate::vertex::Vertex;
 /// A path joined from the first `n` vertices of a camera-side sequence
 /// (`head`: a camera subpath, or one spliced with a portal segment) and
 /// either a light sample (`lamp`, t = 1) or the first `t` vertices of a
-/// light subpath, read backwards: what [`Joins::join_weights`](crate::Joins::join_weights) weighs
-/// without building the path.
+/// light subpath, read backwards: what
+/// [`Joins::join_weights`](crate::Joins::join_weights) weighs without
+/// building the path.
 pub struct Join<'a, 's, V: Recycle> {
     pub(crate) head: &'a RandomSequence<'s, V>,
     pub(crate) n: usize,

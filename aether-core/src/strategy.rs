@@ -231,7 +231,8 @@ pub trait DynStrategy<V> {
     fn instance(&self) -> u64;
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
-    /// Samples one step, pushing its vertex to `out`.
+    /// Samples one step, pushing its vertex to `out`; what it produced,
+    /// with the strategy's memory and depth class ([`Sampled`]).
     fn sample_step(
         &self,
         prefix: Prefix<'_, V>,
@@ -266,7 +267,9 @@ pub trait DynPairStrategy<V> {
     fn instance(&self) -> u64;
     /// The strategy's type name, for reports and cache keys.
     fn name(&self) -> &'static str;
-    /// Samples one step, pushing its two vertices to `out` in sampling order.
+    /// Samples one step, pushing its two vertices to `out` in sampling
+    /// order; what it produced, with the strategy's memory and depth class
+    /// ([`Sampled`]).
     fn sample_step(
         &self,
         prefix: Prefix<'_, V>,
@@ -346,8 +349,9 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
     }
 }
 
-/// One step of `strategy`, and the density of `other` from the same
-/// distribution if asked. One body for both entry points, kept out of
+/// One step of `strategy` (with its memory and depth class, see
+/// [`Sampled`]), and the density of `other` from the same distribution if
+/// asked. One body for both entry points, kept out of
 /// line: with a copy in each, the compiler stopped inlining the
 /// distribution's sampling into either, which cost more than the second
 /// distribution saved.

@@ -43,7 +43,8 @@ pub struct Subpath<'a> {
     vertices: Pooled<[SceneVertex; INLINE_VERTICES]>,
     bsdfs: Pooled<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
     /// The unit direction from each vertex to the one before it (none for
-    /// the first): every BSDF value at the vertex needs it.
+    /// the first): every BSDF value at the vertex needs it, and the
+    /// emission toward the camera of a camera subpath's vertex on a light.
     backs: Pooled<[Option<Vec3>; INLINE_VERTICES]>,
     products: Pooled<[DVec3; INLINE_VERTICES]>,
 }
@@ -183,7 +184,7 @@ impl<'a> Subpath<'a> {
             return DVec3::ZERO;
         }
         let v = &self.vertices[s - 1];
-        let Some(out) = v.direction_to(&self.vertices[s - 2]) else {
+        let Some(out) = self.backs[s - 1] else {
             return DVec3::ZERO;
         };
         let radiance: Vec3 = self.f.emitted(v, out);
@@ -229,7 +230,7 @@ impl<'a> Subpath<'a> {
     /// The direction from this subpath's vertex `s − 1` to `lamp` (s ≥ 1),
     /// and what `lamp` emits back along it.
     fn toward_lamp(&self, s: usize, lamp: &SceneVertex) -> Option<(Vec3, DVec3)> {
-        let c = self.vertices.get(s.checked_sub(1)?)?;
+        let c = &self.vertices[s.checked_sub(1)?];
         let (out, back) = c.directions_between(lamp)?;
         Some((out, self.f.emitted(lamp, back).as_dvec3()))
     }

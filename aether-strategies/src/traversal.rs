@@ -22,6 +22,7 @@ impl obvhs::faststack::FastStack<UVec2> for ShortStack {
     #[inline(always)]
     fn push(&mut self, v: UVec2) {
         // Never full: decoded trees have at most `STACK` levels.
+        debug_assert!(self.len < STACK, "a decoded tree deeper than the stack");
         if let Some(slot) = self.groups.get_mut(self.len) {
             *slot = v;
             self.len += 1;

@@ -13,10 +13,12 @@ pub(crate) struct Shear {
     /// Sz d[kz]), with kz the dominant axis of the direction, kx and ky
     /// swapped where it is negative. Applied as a matrix, not by permuting
     /// each corner: a permutation chosen per ray was a jump through a
-    /// table at every corner, mispredicted on each new ray. The terms the
-    /// matrix adds are exact zeros and the others the test's own products,
-    /// so the coordinates are the same numbers (but for the sign of a
-    /// zero, which no decision of the test reads).
+    /// table at every corner, mispredicted on each new ray. For finite
+    /// corners the terms the matrix adds are exact zeros and the others the
+    /// test's own products, so every decision and every distance are as
+    /// before, and the edge functions too but for the sign of a zero (a
+    /// corner coordinate of −0 on an axis the ray does not move along).
+    /// Non-finite corners give no hit, as before.
     columns: [Vec3A; 3],
 }
 

@@ -12,7 +12,9 @@
 //! by ray), and images stay the same to the bit. The price is memory: 288
 //! bytes a node instead of 80, so only trees of up to [`WIDE_NODES`] nodes
 //! are kept this way; larger ones keep obvhs's nodes (on grids of 200 000
-//! and a million triangles, decoded nodes rendered no faster).
+//! and a million triangles, decoded nodes rendered no faster), and so do
+//! trees of more than [`STACK`] levels, deeper than the short traversal
+//! stack of decoded trees ([`crate::traversal`]).
 
 // `UVec2` is named by obvhs's `traverse!` loop.
 use glam::{UVec2, Vec3A, Vec4};
@@ -183,14 +185,15 @@ fn levels(bvh: &CwBvh) -> usize {
 /// A scene's tree: decoded where it is small, obvhs's own otherwise.
 #[derive(Debug)]
 pub(crate) enum Tree {
-    /// Up to [`WIDE_NODES`] nodes.
+    /// Up to [`WIDE_NODES`] nodes and [`STACK`] levels.
     Wide(WideBvh),
-    /// Larger trees.
+    /// Larger or deeper trees.
     Compressed(CwBvh),
 }
 
 impl Tree {
-    /// The decoded tree of `bvh` if it is small, else `bvh` itself.
+    /// The decoded tree of `bvh` if it is small and shallow enough, else
+    /// `bvh` itself.
     pub(crate) fn of(bvh: CwBvh) -> Self {
         WideBvh::of(&bvh).map_or(Tree::Compressed(bvh), Tree::Wide)
     }
