@@ -284,11 +284,14 @@ fn draw(dims: usize, rng: &mut dyn UniformSource) -> Uniforms {
     (0..dims).map(|_| rng.next_f32()).collect()
 }
 
+/// Samples `d` once, handing its vertices to `push`: what it produced, with
+/// the memory and depth class of the strategy it belongs to.
 fn run<T, D: Distribution<Value = Step<T>>>(
     d: &D,
     rng: &mut dyn UniformSource,
     push: impl FnOnce(T),
-) -> (StepKind, Density) {
+    (memory, class): (usize, usize),
+) -> Sampled {
     // Up to eight uniforms are drawn into the stack, more into a list.
     let dims = d.dims();
     let mut buffer = [0.0f32; 8];
@@ -300,7 +303,7 @@ fn run<T, D: Distribution<Value = Step<T>>>(
         list = draw(dims, rng);
         &list
     };
-    match d.sample(u) {
+    let (kind, density) = match d.sample(u) {
         Some(s) => match s.value {
             Step::Vertex(v) => {
                 push(v);
@@ -310,6 +313,12 @@ fn run<T, D: Distribution<Value = Step<T>>>(
             Step::Missed => (StepKind::Missed, s.density),
         },
         None => (StepKind::Void, Density::zero(Measure::Discrete)),
+    };
+    Sampled {
+        kind,
+        density,
+        memory,
+        class,
     }
 }
 
@@ -367,15 +376,8 @@ fn step<V: Vertex, S: Strategy<V> + ?Sized>(
     let other = other.map_or(Density::zero(Measure::Area), |v| {
         d.density(&Step::Vertex(v.clone()))
     });
-    let (kind, density) = run(&d, rng, |v| out.push(v));
-    let (memory, class) = (strategy.memory(), strategy.depth_class(prefix.len()));
-    let sampled = Sampled {
-        kind,
-        density,
-        memory,
-        class,
-    };
-    (sampled, other)
+    let traits = (strategy.memory(), strategy.depth_class(prefix.len()));
+    (run(&d, rng, |v| out.push(v), traits), other)
 }
 
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
@@ -397,16 +399,15 @@ impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
     ) -> Sampled {
-        let (kind, density) = run(&self.distribution(prefix), rng, |(a, b)| {
+        let traits = (
+            PairStrategy::memory(self),
+            PairStrategy::depth_class(self, prefix.len()),
+        );
+        let push = |(a, b)| {
             out.push(a);
             out.push(b);
-        });
-        Sampled {
-            kind,
-            density,
-            memory: PairStrategy::memory(self),
-            class: PairStrategy::depth_class(self, prefix.len()),
-        }
+        };
+        run(&self.distribution(prefix), rng, push, traits)
     }
     fn density_of(&self, prefix: Prefix<'_, V>, first: &V, second: &V) -> Density {
         self.distribution(prefix)
