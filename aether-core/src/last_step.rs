@@ -30,6 +30,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// appending it: the vertex, with the density recorded while sampling
     /// it, or `None` if the step produced none (or the sequence stopped
     /// before its last step).
+    #[inline(always)]
     pub fn sample_aside(
         &self,
         strategy: &dyn DynStrategy<V>,
@@ -47,6 +48,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ///
     /// # Panics
     /// If `len` is beyond the sequence's vertices.
+    #[inline(always)]
     pub fn sample_after(
         &self,
         len: usize,
@@ -88,6 +90,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// // The light sample's weight over its path's density: positive where it can be lit.
     /// assert!(w_over_p > 0.0 && w_over_p.is_finite());
     /// ```
+    #[inline(always)]
     pub fn append_sample_beside(
         &mut self,
         strategy: &'s dyn DynStrategy<V>,

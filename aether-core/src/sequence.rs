@@ -467,20 +467,43 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ) -> &mut Self {
         self.sample(rng);
         while self.is_complete() && self.len() < max {
-            self.append(strategy).sample(rng);
+            self.append_sample(strategy, rng);
         }
         self
     }
 
     /// Appends `strategy` and samples it at once; returns true if it produced a vertex.
-    #[inline]
+    // Inlined, with the step taken here rather than through the list of
+    // appended strategies, so that where the caller's strategy is of a
+    // known type the call through its table becomes a direct call.
+    #[inline(always)]
     pub fn append_sample(
         &mut self,
         strategy: &'s dyn DynStrategy<V>,
         rng: &mut dyn UniformSource,
     ) -> bool {
-        self.append(strategy);
-        self.sample(rng) == StepKind::Vertex
+        if self.flush(rng) != StepKind::Vertex {
+            self.unsampled.push(StrategyRef::One(strategy));
+            return false;
+        }
+        let step = StrategyRef::One(strategy);
+        let (kind, _) = self.sample_step(step, rng, None);
+        if kind != StepKind::Vertex {
+            self.unsampled.push(step);
+        }
+        kind == StepKind::Vertex
+    }
+
+    /// Samples the strategies appended before (as [`sample`](Self::sample)),
+    /// if any, or says how the sequence stands: the common case, nothing
+    /// pending, decided without a call.
+    #[inline(always)]
+    fn flush(&mut self, rng: &mut dyn UniformSource) -> StepKind {
+        if self.pending.is_empty() && self.unsampled.is_empty() {
+            StepKind::Vertex
+        } else {
+            self.sample(rng)
+        }
     }
 
     /// Appends `strategy` and samples it at once, as
@@ -513,6 +536,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// assert!(by_bounce.value() > 0.0);
     /// assert!((lit.pdf_of_prefix(2).value() * by_bounce.value() - whole).abs() <= 1e-12 * whole);
     /// ```
+    #[inline(always)]
     pub fn append_sample_measuring(
         &mut self,
         strategy: &'s dyn DynStrategy<V>,
@@ -522,7 +546,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         let step = StrategyRef::One(strategy);
         // Steps appended before go first; a sequence that has stopped
         // samples nothing more, but the density is still asked for.
-        if self.sample(rng) != StepKind::Vertex {
+        if self.flush(rng) != StepKind::Vertex {
             self.unsampled.push(step);
             count_evaluation();
             return (
@@ -540,6 +564,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     /// Samples one step; with `measure`, also returns the density with
     /// which the step's strategy would have produced that vertex in place
     /// of its own (zero without).
+    #[inline(always)]
     fn sample_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
