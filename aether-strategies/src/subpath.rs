@@ -2,7 +2,7 @@
 //! subpath to a light subpath costs one connection's factors, not a pass
 //! over the whole path.
 
-use aether_core::{INLINE_VERTICES, Pooled};
+use aether_core::{INLINE_VERTICES, Pooled, Recycle};
 use glam::{DVec3, Vec3};
 
 use crate::bsdf::Bsdf;
@@ -40,13 +40,26 @@ pub enum End {
 pub struct Subpath<'a> {
     f: Integrand<'a>,
     end: End,
-    vertices: Pooled<[SceneVertex; INLINE_VERTICES]>,
-    bsdfs: Pooled<[Option<Bsdf<'a>>; INLINE_VERTICES]>,
-    /// The unit direction from each vertex to the one before it (none for
-    /// the first): every BSDF value at the vertex needs it, and the
-    /// emission toward the camera of a camera subpath's vertex on a light.
-    backs: Pooled<[Option<Vec3>; INLINE_VERTICES]>,
-    products: Pooled<[DVec3; INLINE_VERTICES]>,
+    /// One list, not one per field: each list checks where its items live
+    /// (inline or on the heap) at every access.
+    nodes: Pooled<[Node<'a>; INLINE_VERTICES]>,
+}
+
+/// A vertex of a subpath with what the subpath keeps for it.
+#[derive(Clone, Copy, Debug)]
+struct Node<'a> {
+    vertex: SceneVertex,
+    bsdf: Option<Bsdf<'a>>,
+    /// The unit direction to the vertex before (none for the first): every
+    /// BSDF value at the vertex needs it, and the emission toward the
+    /// camera of a camera subpath's vertex on a light.
+    back: Option<Vec3>,
+    /// The factors of f that the subpath up to this vertex fixes.
+    product: DVec3,
+}
+
+impl Recycle for Node<'_> {
+    type Static = Node<'static>;
 }
 
 impl<'a> Subpath<'a> {
@@ -56,10 +69,7 @@ impl<'a> Subpath<'a> {
         Subpath {
             f,
             end,
-            vertices: Pooled::new(),
-            bsdfs: Pooled::new(),
-            backs: Pooled::new(),
-            products: Pooled::new(),
+            nodes: Pooled::new(),
         }
     }
 
@@ -83,65 +93,68 @@ impl<'a> Subpath<'a> {
     /// Number of vertices.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.vertices.len()
+        self.nodes.len()
     }
 
     /// True if there are no vertices.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.vertices.is_empty()
+        self.nodes.is_empty()
     }
 
-    /// The vertices, from the subpath's end.
+    /// Vertex `i`, counted from the subpath's end.
+    ///
+    /// # Panics
+    /// If there are not `i + 1` vertices.
     #[must_use]
-    pub fn vertices(&self) -> &[SceneVertex] {
-        &self.vertices
+    pub fn vertex(&self, i: usize) -> &SceneVertex {
+        &self.nodes[i].vertex
     }
 
     /// The BSDF at vertex `i`, if it lies on a surface.
     #[must_use]
     pub fn bsdf(&self, i: usize) -> Option<&Bsdf<'a>> {
-        self.bsdfs[i].as_ref()
+        self.nodes[i].bsdf.as_ref()
     }
 
     /// The factors of f that the first `i + 1` vertices fix (see [`Subpath`]).
     #[must_use]
     pub fn product(&self, i: usize) -> DVec3 {
-        self.products[i]
+        self.nodes[i].product
     }
 
     /// True if a connection can end at vertex `i`: it is not on a purely
     /// specular surface.
     #[must_use]
     pub fn connectible(&self, i: usize) -> bool {
-        self.bsdfs[i].is_none_or(|b| !b.is_dirac())
+        self.nodes[i].bsdf.is_none_or(|b| !b.is_dirac())
     }
 
     /// Keeps the first `len` vertices.
     pub fn truncate(&mut self, len: usize) {
-        self.vertices.truncate(len);
-        self.bsdfs.truncate(len);
-        self.backs.truncate(len);
-        self.products.truncate(len);
+        self.nodes.truncate(len);
     }
 
     /// Appends a vertex sampled from the last one (its edge needs no
     /// visibility test).
     pub fn push(&mut self, v: SceneVertex) {
-        let (product, back) = match self.vertices.last() {
+        let (product, back) = match self.nodes.last() {
             None => (DVec3::ONE, None),
             // The edge's direction, which the factor at the last vertex,
             // the geometry term and the new vertex's BSDF values all need,
             // found once (each was a square root and a division).
-            Some(last) => match last.directions_between(&v) {
+            Some(last) => match last.vertex.directions_between(&v) {
                 Some((out, back)) => (self.product_along(self.len() - 1, &v, out), Some(back)),
                 None => (DVec3::ZERO, None),
             },
         };
-        self.bsdfs.push(Bsdf::at(self.f.scene(), &v));
-        self.vertices.push(v);
-        self.backs.push(back);
-        self.products.push(product);
+        let bsdf = Bsdf::at(self.f.scene(), &v);
+        self.nodes.push(Node {
+            vertex: v,
+            bsdf,
+            back,
+            product,
+        });
     }
 
     /// The factors of f that the first `i + 1` vertices fix, followed by a
@@ -150,22 +163,23 @@ impl<'a> Subpath<'a> {
     /// times the edge's geometry term.
     #[inline(always)]
     fn product_along(&self, i: usize, next: &SceneVertex, out: Vec3) -> DVec3 {
-        let g = geometry_term_along(&self.vertices[i], next, out);
-        self.products[i] * self.factor_toward(i, out) * f64::from(g)
+        let node = &self.nodes[i];
+        let g = geometry_term_along(&node.vertex, next, out);
+        node.product * self.factor_toward(i, out) * f64::from(g)
     }
 
     /// The factor of f at vertex `i` when the vertex after it on the way
     /// away from this subpath's end lies in unit direction `out`: the BSDF
     /// value, or at a light's first vertex its emission along `out`.
     fn factor_toward(&self, i: usize, out: Vec3) -> DVec3 {
-        let v = &self.vertices[i];
+        let node = &self.nodes[i];
         if i == 0 {
             return match self.end {
                 End::Camera => DVec3::ONE,
-                End::Light => self.f.emitted(v, out).as_dvec3(),
+                End::Light => self.f.emitted(&node.vertex, out).as_dvec3(),
             };
         }
-        let (Some(bsdf), Some(back)) = (&self.bsdfs[i], self.backs[i]) else {
+        let (Some(bsdf), Some(back)) = (&node.bsdf, node.back) else {
             return DVec3::ZERO;
         };
         let value = match self.end {
@@ -180,15 +194,18 @@ impl<'a> Subpath<'a> {
     #[must_use]
     pub fn emitted(&self, s: usize) -> DVec3 {
         // Most vertices are on no light: asked first, before the direction.
-        if s < 2 || self.end != End::Camera || !self.f.on_light(&self.vertices[s - 1]) {
+        if s < 2 || self.end != End::Camera {
             return DVec3::ZERO;
         }
-        let v = &self.vertices[s - 1];
-        let Some(out) = self.backs[s - 1] else {
+        let node = &self.nodes[s - 1];
+        if !self.f.on_light(&node.vertex) {
+            return DVec3::ZERO;
+        }
+        let Some(out) = node.back else {
             return DVec3::ZERO;
         };
-        let radiance: Vec3 = self.f.emitted(v, out);
-        self.products[s - 1] * radiance.as_dvec3()
+        let radiance: Vec3 = self.f.emitted(&node.vertex, out);
+        node.product * radiance.as_dvec3()
     }
 
     /// f(x̄) without importance for this camera subpath's first `s`
@@ -199,11 +216,11 @@ impl<'a> Subpath<'a> {
         if s == 0 || t == 0 || light.end != End::Light {
             return DVec3::ZERO;
         }
-        let (c, l) = (&self.vertices[s - 1], &light.vertices[t - 1]);
+        let (c, l) = (&self.nodes[s - 1].vertex, &light.nodes[t - 1].vertex);
         let Some((out, back)) = c.directions_between(l) else {
             return DVec3::ZERO;
         };
-        let beyond = light.factor_toward(t - 1, back) * light.products[t - 1];
+        let beyond = light.factor_toward(t - 1, back) * light.nodes[t - 1].product;
         self.join(s, l, out, beyond)
     }
 
@@ -230,7 +247,7 @@ impl<'a> Subpath<'a> {
     /// The direction from this subpath's vertex `s − 1` to `lamp` (s ≥ 1),
     /// and what `lamp` emits back along it.
     fn toward_lamp(&self, s: usize, lamp: &SceneVertex) -> Option<(Vec3, DVec3)> {
-        let c = &self.vertices[s.checked_sub(1)?];
+        let c = &self.nodes[s.checked_sub(1)?].vertex;
         let (out, back) = c.directions_between(lamp)?;
         Some((out, self.f.emitted(lamp, back).as_dvec3()))
     }
@@ -240,7 +257,7 @@ impl<'a> Subpath<'a> {
     /// the edge multiply to `beyond`.
     fn join(&self, s: usize, l: &SceneVertex, out: Vec3, beyond: DVec3) -> DVec3 {
         let f = self.unoccluded(s, l, out, beyond);
-        if f == DVec3::ZERO || !self.f.visible(&self.vertices[s - 1], l) {
+        if f == DVec3::ZERO || !self.f.visible(&self.nodes[s - 1].vertex, l) {
             return DVec3::ZERO;
         }
         f

@@ -211,7 +211,7 @@ fn advance<'a>(
     let rough = |s: &Subpath<'_>, i: usize| s.bsdf(i).is_some_and(|b| b.is_rougher_than(threshold));
     let both_rough = rough(eye, n - 1) && rough(&offset.sub, n - 1);
     if offset.joined_at.is_some() || (both_rough && rough(eye, n)) {
-        if offset.joined_at.is_none() && !visible(scene, &offset.sub.vertices()[n - 1], &x) {
+        if offset.joined_at.is_none() && !visible(scene, offset.sub.vertex(n - 1), &x) {
             return false;
         }
         offset.path.extend_from(base, n..n + 1, false);
