@@ -5,12 +5,14 @@
 //!
 //! A node stores each child's box as bytes on a grid of the node's box.
 //! obvhs's node test converts those 48 bytes to floats at every visit,
-//! about a sixth of a ray's instructions on the Cornell box. The floats
-//! here are those conversions' exact results, used in the same arithmetic
-//! in the same order, so the tree finds the same children in the same
-//! order as obvhs's test (this file's tests check it, node by node and ray
-//! by ray), and images stay the same to the bit. The price is memory: 288
-//! bytes a node instead of 80, so only trees of up to [`WIDE_NODES`] nodes
+//! about a sixth of a ray's instructions on the Cornell box, and decodes
+//! where each child's hit goes in the traversal's mask for the ray's
+//! octant. The floats here are those conversions' exact results, used in
+//! the same arithmetic in the same order, and the masks are decoded once
+//! per octant, so the tree finds the same children in the same order as
+//! obvhs's test (this file's tests check it, node by node and ray by ray),
+//! and images stay the same to the bit. The price is memory: 496 bytes a
+//! node instead of 80, so only trees of up to [`WIDE_NODES`] nodes
 //! are kept this way; larger ones keep obvhs's nodes (on grids of 200 000
 //! and a million triangles, decoded nodes rendered no faster), and so do
 //! trees of more than [`STACK`] levels, deeper than the short traversal
@@ -25,7 +27,7 @@ use obvhs::ray::{Ray, RayHit};
 use crate::traversal::{STACK, Walk};
 
 /// Trees of up to this many nodes (tens of thousands of triangles) are
-/// decoded: under 5 MB.
+/// decoded: about 8 MB.
 pub(crate) const WIDE_NODES: usize = 1 << 14;
 
 /// The smallest entry distance obvhs's node test accepts, which this test
@@ -39,10 +41,18 @@ pub(crate) struct WideNode {
     child_base_idx: u32,
     primitive_base_idx: u32,
     imask: u8,
-    node: CwBvhNode,
+    /// The node's grid: its origin and cell size per axis (powers of two),
+    /// as obvhs's test finds them at every visit.
+    origin: Vec3A,
+    extent: Vec3A,
     /// Per axis, the children's lower then upper planes, children 0–3 in
     /// the first vector and 4–7 in the second.
     planes: [[[Vec4; 2]; 2]; 3],
+    /// Per ray octant (its direction's signs, [`octant`]), what each child
+    /// adds to the hit mask when the ray enters it: obvhs's
+    /// `get_child_and_index_bits` decoded once per node rather than at
+    /// every visit.
+    bits: [[u32; 8]; 8],
 }
 
 impl WideNode {
@@ -54,16 +64,25 @@ impl WideNode {
                 Vec4::new(f[4], f[5], f[6], f[7]),
             ]
         };
+        let bits = std::array::from_fn(|o| {
+            let (child, index) = node.get_child_and_index_bits(OCTANTS[o]);
+            std::array::from_fn(|j| {
+                let shift = 8 * j;
+                (((child >> shift) & 0xff) as u32) << (((index >> shift) & 0xff) as u32)
+            })
+        });
         WideNode {
             child_base_idx: node.child_base_idx,
             primitive_base_idx: node.primitive_base_idx,
             imask: node.imask,
-            node: *node,
+            origin: Vec3A::from(node.p),
+            extent: node.compute_extent(),
             planes: [
                 [floats(&node.child_min_x), floats(&node.child_max_x)],
                 [floats(&node.child_min_y), floats(&node.child_max_y)],
                 [floats(&node.child_min_z), floats(&node.child_max_z)],
             ],
+            bits,
         }
     }
 
@@ -72,14 +91,14 @@ impl WideNode {
     /// that `oct_inv4` (the ray's octant) gives them.
     #[inline(always)]
     fn hits(&self, ray: &Ray, oct_inv4: u32) -> u32 {
-        let scale = self.node.compute_extent() * ray.inv_direction;
-        let start = (Vec3A::from(self.node.p) - ray.origin) * ray.inv_direction;
+        let scale = self.extent * ray.inv_direction;
+        let start = (self.origin - ray.origin) * ray.inv_direction;
         let negative = [
             ray.direction.x < 0.0,
             ray.direction.y < 0.0,
             ray.direction.z < 0.0,
         ];
-        let (child_bits, bit_index) = self.node.get_child_and_index_bits(oct_inv4);
+        let bits = &self.bits[octant(oct_inv4)];
         let mut mask = 0;
         for half in 0..2 {
             // Entry and exit distances of the four children's slabs on one axis.
@@ -95,14 +114,31 @@ impl WideNode {
             let entered = near.cmple(far).bitmask();
             for j in 0..4 {
                 if entered & (1 << j) != 0 {
-                    let shift = 8 * (4 * half + j);
-                    let bits = ((child_bits >> shift) & 0xff) as u32;
-                    mask |= bits << (((bit_index >> shift) & 0xff) as u32);
+                    mask |= bits[4 * half + j];
                 }
             }
         }
         mask
     }
+}
+
+/// The octants as obvhs's traversal encodes them ([`crate::traversal::octant_inv4`]),
+/// by their index [`octant`].
+const OCTANTS: [u32; 8] = {
+    let mut all = [0; 8];
+    let mut o = 0;
+    while o < 8 {
+        all[o] = (o as u32) * 0x0101_0101;
+        o += 1;
+    }
+    all
+};
+
+/// The index of an octant in [`OCTANTS`]: its encoding repeats one byte,
+/// the low three bits of which tell it.
+#[inline(always)]
+fn octant(oct_inv4: u32) -> usize {
+    (oct_inv4 & 7) as usize
 }
 
 /// A tree of [`WideNode`]s: obvhs's traversal over decoded nodes.
