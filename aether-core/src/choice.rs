@@ -16,7 +16,13 @@ fn sample_with_first<T>(u: &[f32], first: f32, f: impl FnOnce(&[f32]) -> T) -> T
         return f(&with_first(u, first));
     }
     let n = u.len().max(1);
-    buffer[..u.len()].copy_from_slice(u);
+    // Element by element up to the buffer's length, not as one slice copy,
+    // which became a call to memcpy of a few bytes at every choice.
+    for (i, x) in buffer.iter_mut().enumerate().skip(1) {
+        if let Some(&v) = u.get(i) {
+            *x = v;
+        }
+    }
     buffer[0] = first;
     f(&buffer[..n])
 }
