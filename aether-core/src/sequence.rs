@@ -496,7 +496,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
 
     /// Samples the strategies appended before (as [`sample`](Self::sample)),
     /// if any, or says how the sequence stands: the common case, nothing
-    /// pending, decided without a call.
+    /// pending or unsampled, decided without a call.
     #[inline(always)]
     fn flush(&mut self, rng: &mut dyn UniformSource) -> StepKind {
         if self.pending.is_empty() && self.unsampled.is_empty() {

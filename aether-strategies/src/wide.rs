@@ -34,16 +34,18 @@ pub(crate) const WIDE_NODES: usize = 1 << 14;
 /// must share to find the same children.
 const NEAREST: f32 = 0.0001;
 
-/// A compressed node and its children's planes as floats. The first three
-/// fields are the ones obvhs's `traverse!` loop reads, by these names.
+/// The fields of a compressed node that obvhs's `traverse!` loop reads (the
+/// first three, by these names), with the node's grid, its children's
+/// planes as floats and their hit-mask bits per octant.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct WideNode {
     child_base_idx: u32,
     primitive_base_idx: u32,
     imask: u8,
-    /// The node's grid: its origin and cell size per axis (powers of two),
-    /// as obvhs's test finds them at every visit.
+    /// The origin of the node's grid, as obvhs's test finds it at every visit.
     origin: Vec3A,
+    /// The grid's cell size per axis (powers of two), as obvhs's test
+    /// decodes it from the node's exponents at every visit.
     extent: Vec3A,
     /// Per axis, the children's lower then upper planes, children 0–3 in
     /// the first vector and 4–7 in the second.
