@@ -24,7 +24,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::{Ray, RayHit};
 
-use crate::traversal::{STACK, Walk};
+use crate::traversal::{STACK, Walk, octant_inv4};
 
 /// Trees of up to this many nodes (tens of thousands of triangles) are
 /// decoded: about 8 MB.
@@ -67,7 +67,7 @@ impl WideNode {
             ]
         };
         let bits = std::array::from_fn(|o| {
-            let (child, index) = node.get_child_and_index_bits(OCTANTS[o]);
+            let (child, index) = node.get_child_and_index_bits(octant_of(o));
             std::array::from_fn(|j| {
                 let shift = 8 * j;
                 (((child >> shift) & 0xff) as u32) << (((index >> shift) & 0xff) as u32)
@@ -124,20 +124,16 @@ impl WideNode {
     }
 }
 
-/// The octants as obvhs's traversal encodes them ([`crate::traversal::octant_inv4`]),
-/// by their index [`octant`].
-const OCTANTS: [u32; 8] = {
-    let mut all = [0; 8];
-    let mut o = 0;
-    while o < 8 {
-        all[o] = (o as u32) * 0x0101_0101;
-        o += 1;
-    }
-    all
-};
+/// The octant of index `o` as obvhs's traversal encodes it: that of a
+/// direction whose x, y and z are not negative where bits 2, 1 and 0 of
+/// `o` are set ([`crate::traversal::octant_inv4`]).
+fn octant_of(o: usize) -> u32 {
+    let sign = |bit: usize| if o & bit != 0 { 1.0 } else { -1.0 };
+    octant_inv4(Vec3A::new(sign(4), sign(2), sign(1)))
+}
 
-/// The index of an octant in [`OCTANTS`]: its encoding repeats one byte,
-/// the low three bits of which tell it.
+/// The index `o` of an octant, [`octant_of`]'s inverse: the encoding
+/// repeats one byte, whose low three bits are those of `o`.
 #[inline(always)]
 fn octant(oct_inv4: u32) -> usize {
     (oct_inv4 & 7) as usize
@@ -256,7 +252,6 @@ pub(crate) use with_tree;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::traversal::octant_inv4;
     use glam::Vec3;
 
     fn random_tree(seed: u64) -> (CwBvh, Vec<[Vec3; 3]>) {
@@ -299,6 +294,13 @@ mod tests {
                 Ray::new(o.into(), (d + Vec3::ZERO).into(), 0.0, t_max)
             })
             .collect()
+    }
+
+    #[test]
+    fn octant_indices_invert_their_encoding() {
+        for o in 0..8 {
+            assert_eq!(octant(octant_of(o)), o);
+        }
     }
 
     #[test]
