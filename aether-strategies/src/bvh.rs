@@ -8,6 +8,7 @@
 use glam::{Vec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
@@ -45,13 +46,20 @@ fn sphere_box(s: &Sphere) -> Aabb {
     Aabb::new(center - half, center + half)
 }
 
-/// The tree over `triangles` followed by `spheres`: its
-/// `primitive_indices` index that concatenation (a large triangle split
-/// into pieces appears once per piece). The steps of obvhs's own triangle
-/// builder, with the spheres' boxes added after the split, so that a scene
-/// without spheres gets the same tree as from that builder. None for an
-/// empty scene.
+/// The tree over `triangles` followed by `spheres`, as obvhs's compressed
+/// wide BVH: its `primitive_indices` index that concatenation (a large
+/// triangle split into pieces appears once per piece). None for an empty
+/// scene.
+#[cfg(test)]
 pub(crate) fn build(triangles: &[[Vec3; 3]], spheres: &[Sphere]) -> Option<CwBvh> {
+    build_binary(triangles, spheres).map(|b| compress(&b, triangles.len() + spheres.len()))
+}
+
+/// The binary tree over `triangles` followed by `spheres`: the steps of
+/// obvhs's own triangle builder, with the spheres' boxes added after the
+/// split, so that a scene without spheres gets the same tree as from that
+/// builder. None for an empty scene.
+pub(crate) fn build_binary(triangles: &[[Vec3; 3]], spheres: &[Sphere]) -> Option<Bvh2> {
     let count = triangles.len() + spheres.len();
     if count == 0 {
         return None;
@@ -85,12 +93,14 @@ pub(crate) fn build(triangles: &[[Vec3; 3]], spheres: &[Sphere]) -> Option<CwBvh
     );
     bvh2.uses_spatial_splits = config.pre_split;
     ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
-    Some(bvh2_to_cwbvh(
-        &bvh2,
-        config.max_prims_per_leaf.clamp(1, 3),
-        true,
-        false,
-    ))
+    Some(bvh2)
+}
+
+/// obvhs's compressed wide BVH of the binary tree `bvh2` over `count`
+/// primitives.
+pub(crate) fn compress(bvh2: &Bvh2, count: usize) -> CwBvh {
+    let config = build_params(count);
+    bvh2_to_cwbvh(bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false)
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use glam::{DVec3, Vec2, Vec3};
 use obvhs::ray::{Ray, RayHit};
 
 use crate::mesh::{TriangleMesh, TrianglePlane, triangle_normal};
-use crate::watertight::{Edges, Shear};
+use crate::watertight::{Edges, Shear, Shear4};
 use crate::wide::{Tree, with_tree};
 
 /// An analytic sphere.
@@ -179,14 +179,16 @@ impl Geometry {
         } else {
             &spheres[..]
         };
-        let bvh = crate::bvh::build(&flat, in_tree);
-        let order = bvh.as_ref().map_or(&[][..], |b| &b.primitive_indices[..]);
+        let (bvh, order) = crate::bvh::build_binary(&flat, in_tree)
+            .map(|b| Tree::build(&b, &flat, in_tree.len()))
+            .unzip();
+        let order = order.unwrap_or_default();
         let primitive = |i: u32| match flat.get(i as usize) {
             Some(&corners) => (corners, triangle_normal(corners), from[i as usize]),
             None => ([Vec3::NAN; 3], Vec3::ZERO, (SPHERE, i - flat.len() as u32)),
         };
         let (mut triangles, mut normals, mut origins) = (Vec::new(), Vec::new(), Vec::new());
-        for &i in order {
+        for &i in &order {
             let (corners, normal, origin) = primitive(i);
             triangles.push(corners);
             normals.push(normal);
@@ -198,7 +200,7 @@ impl Geometry {
             triangles,
             normals,
             origins,
-            bvh: bvh.map(Tree::of),
+            bvh,
             spheres_listed,
         }
     }
@@ -230,25 +232,31 @@ impl Geometry {
         if !self.spheres_listed {
             return self.intersect_tree_with_spheres(origin, dir, t_max);
         }
-        let shear = Shear::new(origin, dir);
-        let mut best: Option<(f32, usize, [f32; 3])> = None;
-        if let Some(bvh) = &self.bvh {
-            let ray = bvh_ray(origin, dir, t_max);
-            let mut hit = RayHit::none();
-            let mut edges = Edges([0.0; 3], 1.0);
-            with_tree!(bvh, tree => tree.ray_traverse(ray, &mut hit, |r, id| {
-                match shear.intersect(&self.triangles[id], 0.0, r.tmax) {
-                    Some((t, e)) => {
-                        edges = e;
-                        t
+        let best = self.bvh.as_ref().and_then(|bvh| {
+            let exact = |shear: &Shear, id: usize, t_max: f32| {
+                shear.intersect(&self.triangles[id], 0.0, t_max)
+            };
+            with_tree!(bvh, tree => {
+                let shear = Shear::new(origin, dir);
+                let mut hit = RayHit::none();
+                let mut edges = Edges([0.0; 3], 1.0);
+                tree.ray_traverse(bvh_ray(origin, dir, t_max), &mut hit, |r, id| {
+                    match exact(&shear, id, r.tmax) {
+                        Some((t, e)) => {
+                            edges = e;
+                            t
+                        }
+                        None => f32::INFINITY,
                     }
-                    None => f32::INFINITY,
-                }
-            }));
-            if hit.t < t_max {
-                best = Some((hit.t, hit.primitive_id as usize, edges.barycentrics()));
-            }
-        }
+                });
+                (hit.t < t_max).then_some((hit.t, hit.primitive_id as usize, edges))
+            }, quad => {
+                // The scalar setup only for the rare leaf that needs it.
+                let exact = |id, t_max| exact(&Shear::new(origin, dir), id, t_max);
+                quad.closest(&Shear4::new(origin, dir), (origin, dir), t_max, exact)
+            })
+            .map(|(t, id, edges)| (t, id, edges.barycentrics()))
+        });
         let mut sphere_hit = None;
         let limit = best.map_or(t_max, |b| b.0);
         for (i, s) in self.spheres.iter().enumerate() {
@@ -276,6 +284,7 @@ impl Geometry {
         let mut hit = RayHit::none();
         let mut edges = Edges([0.0; 3], 1.0);
         let ray = bvh_ray(origin, dir, t_max);
+        // (Trees with spheres are never four-wide.)
         with_tree!(bvh, tree => tree.ray_traverse(ray, &mut hit, |r, id| {
             match self.tree_candidate(&shear, id, (origin, dir), r.tmax) {
                 Some((t, e)) => {
@@ -284,7 +293,7 @@ impl Geometry {
                 }
                 None => f32::INFINITY,
             }
-        }));
+        }), _quad => false);
         if hit.t >= t_max {
             return None;
         }
@@ -335,13 +344,18 @@ impl Geometry {
             return true;
         }
         let Some(bvh) = &self.bvh else { return false };
-        let shear = Shear::new(origin, dir);
-        let ray = bvh_ray(origin, dir, t_max);
-        !with_tree!(bvh, tree => tree.ray_traverse_miss(ray, |r, id| {
+        let exact = |shear: &Shear, id: usize, t_max: f32| {
             shear
-                .intersect(&self.triangles[id], 0.0, r.tmax)
+                .intersect(&self.triangles[id], 0.0, t_max)
                 .map_or(f32::INFINITY, |h| h.0)
-        }))
+        };
+        with_tree!(bvh, tree => {
+            let shear = Shear::new(origin, dir);
+            !tree.ray_traverse_miss(bvh_ray(origin, dir, t_max), |r, id| exact(&shear, id, r.tmax))
+        }, quad => {
+            let exact = |id, t_max| exact(&Shear::new(origin, dir), id, t_max) < t_max;
+            quad.blocked(&Shear4::new(origin, dir), (origin, dir), t_max, exact)
+        })
     }
 
     /// As [`occluded`](Self::occluded) when the spheres are in the tree.
@@ -350,10 +364,11 @@ impl Geometry {
         let Some(bvh) = &self.bvh else { return false };
         let shear = Shear::new(origin, dir);
         let ray = bvh_ray(origin, dir, t_max);
+        // (Trees with spheres are never four-wide.)
         !with_tree!(bvh, tree => tree.ray_traverse_miss(ray, |r, id| {
             self.tree_candidate(&shear, id, (origin, dir), r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
-        }))
+        }), _quad => true)
     }
 
     /// True if the segment between two surface points is unobstructed;

@@ -17,6 +17,7 @@ pub mod lights;
 pub mod mesh;
 pub mod mutations;
 pub mod portal;
+mod quad;
 pub mod scattering;
 pub mod scene;
 pub mod spectrum;

@@ -3,7 +3,7 @@
 //! the ray, and the edge functions of a hit, divided into barycentrics only
 //! for the hit a ray keeps.
 
-use glam::{Vec3, Vec3A};
+use glam::{BVec4A, Vec3, Vec3A, Vec4};
 
 /// The per-ray setup of the watertight test (Woop, Benthin and Wald 2013).
 pub(crate) struct Shear {
@@ -22,23 +22,32 @@ pub(crate) struct Shear {
     columns: [Vec3A; 3],
 }
 
+/// The axes kx, ky and kz of the test for a ray along `dir` (kz the
+/// dominant one, kx and ky swapped where it is negative), and the shear
+/// Sx, Sy, Sz.
+#[inline(always)]
+fn axes(dir: Vec3) -> ([usize; 3], Vec3) {
+    let a = dir.abs();
+    let kz = if a.x > a.y {
+        if a.x > a.z { 0 } else { 2 }
+    } else if a.y > a.z {
+        1
+    } else {
+        2
+    };
+    let d = dir.to_array();
+    let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if d[kz] < 0.0 {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    // Indexing arrays, not vectors (whose index is a branch per axis).
+    let s = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+    ([kx, ky, kz], s)
+}
+
 impl Shear {
     pub(crate) fn new(origin: Vec3, dir: Vec3) -> Self {
-        let a = dir.abs();
-        let kz = if a.x > a.y {
-            if a.x > a.z { 0 } else { 2 }
-        } else if a.y > a.z {
-            1
-        } else {
-            2
-        };
-        let d = dir.to_array();
-        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        // Indexing arrays, not vectors (whose index is a branch per axis).
-        let s = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let ([kx, ky, kz], s) = axes(dir);
         let mut columns = [Vec3A::ZERO; 3];
         columns[kx] = Vec3A::X;
         columns[ky] = Vec3A::Y;
@@ -81,7 +90,185 @@ impl Shear {
         let z = rel.map(|p| p.z);
         let t_scaled = u * z[0] + w2 * z[1] + w * z[2];
         let t = t_scaled / det;
-        (t > t_min && t < t_max).then_some((t, Edges([u, w2, w], det)))
+        if !(t > t_min && t < t_max) {
+            return None;
+        }
+        let largest = |c: [f32; 3]| c[0].abs().max(c[1].abs()).max(c[2].abs());
+        let bound = error_bound(
+            [
+                largest(xy.map(|p| p.0)),
+                largest(xy.map(|p| p.1)),
+                largest(z),
+            ],
+            largest([u, w2, w]),
+            det,
+        );
+        (t > bound).then_some((t, Edges([u, w2, w], det)))
+    }
+}
+
+/// The per-ray setup of the watertight test on four triangles at once: the
+/// axes, and the origin's coordinates on them and the shear, each spread
+/// over four lanes.
+pub(crate) struct Shear4 {
+    axes: [usize; 3],
+    origin: [Vec4; 3],
+    scale: [Vec4; 3],
+}
+
+impl Shear4 {
+    #[inline(always)]
+    pub(crate) fn new(origin: Vec3, dir: Vec3) -> Self {
+        let (axes, s) = axes(dir);
+        let o = origin.to_array();
+        Shear4 {
+            axes,
+            origin: axes.map(|k| Vec4::splat(o[k])),
+            scale: s.to_array().map(Vec4::splat),
+        }
+    }
+
+    /// The test of [`Shear::intersect`] on four triangles at once,
+    /// `corners[vertex][axis]` holding one triangle per lane: the lanes
+    /// that hit in (0, `t_max`), with their distances, edge functions and
+    /// determinants, or None where an edge function of a lane is zero, for
+    /// which the scalar test decides in double precision. Each lane's
+    /// arithmetic is the scalar test's, operation for operation: the
+    /// permutation picks whole vectors where the scalar test multiplies by
+    /// a matrix of zeros and ones, which changes nothing but the sign of a
+    /// zero.
+    #[inline(always)]
+    pub(crate) fn intersect(&self, corners: &[[Vec4; 3]; 3], t_max: f32) -> Option<Hits4> {
+        let [kx, ky, kz] = self.axes;
+        let [ox, oy, oz] = self.origin;
+        let [sx, sy, sz] = self.scale;
+        let sheared = |v: &[Vec4; 3]| {
+            let dz = v[kz] - oz;
+            ((v[kx] - ox) - sx * dz, (v[ky] - oy) - sy * dz, sz * dz)
+        };
+        let (a, b, c) = (
+            sheared(&corners[0]),
+            sheared(&corners[1]),
+            sheared(&corners[2]),
+        );
+        let u = c.0 * b.1 - c.1 * b.0;
+        let w2 = a.0 * c.1 - a.1 * c.0;
+        let w = b.0 * a.1 - b.1 * a.0;
+        let zero = Vec4::ZERO;
+        if (u.cmpeq(zero) | w2.cmpeq(zero) | w.cmpeq(zero)).any() {
+            return None;
+        }
+        let negative = u.cmplt(zero) | w2.cmplt(zero) | w.cmplt(zero);
+        let positive = u.cmpgt(zero) | w2.cmpgt(zero) | w.cmpgt(zero);
+        let det = u + w2 + w;
+        let t = (u * a.2 + w2 * b.2 + w * c.2) / det;
+        let inside: BVec4A = !(negative & positive) & det.cmpne(zero);
+        let mut hit = inside & t.cmpgt(zero) & t.cmplt(Vec4::splat(t_max));
+        if hit.any() {
+            let largest = |p: Vec4, q: Vec4, r: Vec4| p.abs().max(q.abs()).max(r.abs());
+            let bound = error_bound(
+                [
+                    largest(a.0, b.0, c.0),
+                    largest(a.1, b.1, c.1),
+                    largest(a.2, b.2, c.2),
+                ],
+                largest(u, w2, w),
+                det,
+            );
+            hit &= t.cmpgt(bound);
+        }
+        Some(Hits4 {
+            hit,
+            mask: hit.bitmask(),
+            t,
+            edges: [u, w2, w],
+            det,
+        })
+    }
+}
+
+/// γₙ of floating-point error analysis (pbrt's `gamma`): a bound on the
+/// relative error of n rounded operations.
+const fn gamma(n: f32) -> f32 {
+    let e = f32::EPSILON * 0.5;
+    n * e / (1.0 - n * e)
+}
+
+/// A conservative bound on the rounding error of a hit's distance, from
+/// the largest magnitudes of the sheared corners' coordinates (x, y, z),
+/// of the edge functions, and the determinant (pbrt-v4's bound, section
+/// 6.8.5): a hit no farther than this may lie behind the origin. A ray
+/// leaving a surface point that no rounding moved off its plane (the
+/// corner of an axis-aligned floor, say) would otherwise find its own
+/// triangle a rounding error away and stop there.
+#[inline(always)]
+fn error_bound<T>([x, y, z]: [T; 3], edges: T, det: T) -> T
+where
+    T: Copy
+        + std::ops::Add<Output = T>
+        + std::ops::Mul<Output = T>
+        + std::ops::Div<Output = T>
+        + std::ops::Mul<f32, Output = T>
+        + Absolute,
+{
+    let dz = z * gamma(3.0);
+    let dx = (x + z) * gamma(5.0);
+    let dy = (y + z) * gamma(5.0);
+    let de = (x * y * gamma(2.0) + dy * x + dx * y) * 2.0;
+    (edges * z * gamma(3.0) + de * z + dz * edges) * 3.0 / det.absolute()
+}
+
+/// The absolute value, of one lane or four.
+trait Absolute {
+    fn absolute(self) -> Self;
+}
+
+impl Absolute for f32 {
+    #[inline(always)]
+    fn absolute(self) -> Self {
+        self.abs()
+    }
+}
+
+impl Absolute for Vec4 {
+    #[inline(always)]
+    fn absolute(self) -> Self {
+        self.abs()
+    }
+}
+
+/// What [`Shear4::intersect`] finds: the lanes that hit (bits 0–3), with
+/// every lane's distance, edge functions and determinant.
+pub(crate) struct Hits4 {
+    hit: BVec4A,
+    pub(crate) mask: u32,
+    pub(crate) t: Vec4,
+    pub(crate) edges: [Vec4; 3],
+    pub(crate) det: Vec4,
+}
+
+impl Hits4 {
+    /// The lane of the nearest hit, if any (the first of equals).
+    #[inline(always)]
+    pub(crate) fn nearest(&self) -> Option<usize> {
+        if self.mask == 0 {
+            return None;
+        }
+        let t = Vec4::select(self.hit, self.t, Vec4::INFINITY);
+        let least = t.min_element();
+        Some((t.cmpeq(Vec4::splat(least)).bitmask() & self.mask).trailing_zeros() as usize)
+    }
+
+    /// The distance and edge functions of lane `k` (through arrays:
+    /// a vector's lane by a variable index is a jump through a table).
+    #[inline(always)]
+    pub(crate) fn lane(&self, k: usize) -> (f32, Edges) {
+        let k = k & 3;
+        let [u, w2, w] = self.edges.map(|v| v.to_array());
+        (
+            self.t.to_array()[k],
+            Edges([u[k], w2[k], w[k]], self.det.to_array()[k]),
+        )
     }
 }
 

@@ -19,11 +19,13 @@
 //! stack of decoded trees ([`crate::traversal`]).
 
 // `UVec2` is named by obvhs's `traverse!` loop.
-use glam::{UVec2, Vec3A, Vec4};
+use glam::{UVec2, Vec3, Vec3A, Vec4};
+use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ray::{Ray, RayHit};
 
+use crate::quad::QuadBvh;
 use crate::traversal::{STACK, Walk, octant_inv4};
 
 /// Trees of up to this many nodes (tens of thousands of triangles) are
@@ -216,9 +218,13 @@ fn levels(bvh: &CwBvh) -> usize {
     deepest
 }
 
-/// A scene's tree: decoded where it is small, obvhs's own otherwise.
+/// A scene's tree: four-wide where it holds triangles alone; else obvhs's
+/// wide nodes, decoded where the tree is small.
 #[derive(Debug)]
 pub(crate) enum Tree {
+    /// Triangles alone, in a tree that no ray overflows
+    /// ([`QuadBvh`]).
+    Quad(QuadBvh),
     /// Up to [`WIDE_NODES`] nodes and [`STACK`] levels.
     Wide(WideBvh),
     /// Larger or deeper trees.
@@ -231,17 +237,34 @@ impl Tree {
     pub(crate) fn of(bvh: CwBvh) -> Self {
         WideBvh::of(&bvh).map_or(Tree::Compressed(bvh), Tree::Wide)
     }
+
+    /// The tree for rays of the binary tree `bvh` over `triangles`
+    /// followed by `spheres` spheres, and its order of the primitives (the
+    /// concatenation's indices, a large triangle split into pieces once per
+    /// piece), by which rays number what they hit.
+    pub(crate) fn build(bvh: &Bvh2, triangles: &[[Vec3; 3]], spheres: usize) -> (Self, Vec<u32>) {
+        if spheres == 0
+            && let Some(quad) = QuadBvh::of(bvh, triangles)
+        {
+            let order = quad.order().to_vec();
+            return (Tree::Quad(quad), order);
+        }
+        let wide = crate::bvh::compress(bvh, triangles.len() + spheres);
+        let order = wide.primitive_indices.clone();
+        (Tree::of(wide), order)
+    }
 }
 
-/// `$body` with `$t` bound to the tree `$tree` (a `&Tree`), whichever its
-/// kind. The body is written once but compiled per kind, so that a
+/// `$body` with `$t` bound to the tree `$tree` (a `&Tree`) if it has
+/// obvhs's wide nodes, `$other` with `$quad` bound to it if it is four-wide. The body is written once but compiled per kind, so that a
 /// primitive test written in it as a closure is a closure per traversal
 /// and inlines into it: one closure handed to both (through a method of
 /// `Tree`) stayed a call per candidate, which cost more than decoding the
 /// nodes saved.
 macro_rules! with_tree {
-    ($tree:expr, $t:ident => $body:expr) => {
+    ($tree:expr, $t:ident => $body:expr, $quad:ident => $other:expr) => {
         match $tree {
+            $crate::wide::Tree::Quad($quad) => $other,
             $crate::wide::Tree::Wide($t) => $body,
             $crate::wide::Tree::Compressed($t) => $body,
         }

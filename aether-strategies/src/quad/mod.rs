@@ -1,0 +1,351 @@
+//! A four-wide BVH for processors rather than graphics cards: each node
+//! holds its four children's boxes as floats, each leaf up to four
+//! triangles side by side, so that one pass of four-lane arithmetic tests
+//! four boxes or four triangles ([`Shear4::intersect`]).
+//!
+//! obvhs's compressed wide tree (eight children, boxes as bytes, leaves of
+//! up to three triangles tested one by one) is laid out for a graphics
+//! card's memory; on the Cornell box a ray spent more instructions on its
+//! bookkeeping (the hit mask, the octant order, the quantized planes) than
+//! on its triangles. This tree is collapsed from the same binary tree
+//! (obvhs's PLOC build with reinsertion), so it bounds the same pieces; a
+//! ray finds the same closest hit, and the same distance, up to which of
+//! two triangles it keeps when both are hit at exactly the same distance.
+
+use glam::{Vec3, Vec4};
+use obvhs::ray::safe_inverse;
+
+use crate::watertight::{Edges, Shear4};
+
+mod build;
+
+/// Pending children a ray can hold: a tree is kept in this form only if
+/// no ray can need more (each node adds at most three).
+const STACK: usize = 32;
+
+/// The bit of a child reference that marks a leaf.
+const LEAF: u32 = 1 << 31;
+
+/// Slack on a box's exit distance (pbrt's 1 + 2γ₃) so that rounding never
+/// makes a ray miss the box of a triangle it hits.
+const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// Four children's boxes: per axis, their lower then upper planes
+/// (`planes[2 * axis + side]`), and what each child is. An empty slot has
+/// an empty box (lower +∞, upper −∞), which no ray enters.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    planes: [Vec4; 6],
+    children: [u32; 4],
+}
+
+/// Up to four triangles side by side: `corners[vertex][axis]` holds the
+/// triangles' coordinates in its lanes (NaN in unused lanes, which no ray
+/// hits), the first triangle's position in the tree's order, and how many.
+#[derive(Clone, Copy, Debug)]
+struct Leaf {
+    corners: [[Vec4; 3]; 3],
+    first: u32,
+    count: u32,
+}
+
+/// The four-wide tree: nodes, leaves, the child reference of the root,
+/// and the primitives (the binary tree's indices) in the order its leaves
+/// number them.
+#[derive(Debug)]
+pub(crate) struct QuadBvh {
+    nodes: Vec<Node>,
+    leaves: Vec<Leaf>,
+    root: u32,
+    order: Vec<u32>,
+}
+
+/// A ray as the node test reads it: origin and inverse direction spread
+/// over four lanes, and per axis which planes it enters and leaves by.
+struct Slabs {
+    origin: [Vec4; 3],
+    inverse: [Vec4; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl Slabs {
+    #[inline(always)]
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        // obvhs's inverse, whose tiny components stay finite, so that a
+        // plane through the origin gives 0, never NaN.
+        let inv = [dir.x, dir.y, dir.z].map(safe_inverse);
+        let near = std::array::from_fn(|a| 2 * a + usize::from(inv[a] < 0.0));
+        Slabs {
+            origin: origin.to_array().map(Vec4::splat),
+            inverse: inv.map(Vec4::splat),
+            near,
+            far: near.map(|n| n ^ 1),
+        }
+    }
+
+    /// The children of `node` that the ray enters before `t_max`, as bits
+    /// 0–3, and their entry distances.
+    #[inline(always)]
+    fn enter(&self, node: &Node, t_max: f32) -> (u32, Vec4) {
+        let t = |plane: usize, a: usize| (node.planes[plane] - self.origin[a]) * self.inverse[a];
+        let near = t(self.near[0], 0)
+            .max(t(self.near[1], 1))
+            .max(t(self.near[2], 2));
+        let far = t(self.far[0], 0)
+            .min(t(self.far[1], 1))
+            .min(t(self.far[2], 2));
+        let near = near.max(Vec4::ZERO);
+        let far = far.min(Vec4::splat(t_max)) * ROBUST;
+        (near.cmple(far).bitmask(), near)
+    }
+}
+
+impl QuadBvh {
+    /// The primitives in the order the leaves number them: a triangle the
+    /// tree splits into pieces appears once per piece.
+    pub(crate) fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// The closest triangle the ray from `origin` along `dir` (with
+    /// `shear` set up for it) meets in (0, `t_max`): its distance, its
+    /// position in the tree's order and its edge functions. `exact` is the
+    /// scalar test of the triangle at a position, for the rare leaf where
+    /// an edge passes exactly through the ray.
+    #[inline(always)]
+    pub(crate) fn closest(
+        &self,
+        shear: &Shear4,
+        (origin, dir): (Vec3, Vec3),
+        t_max: f32,
+        exact: impl Fn(usize, f32) -> Option<(f32, Edges)>,
+    ) -> Option<(f32, usize, Edges)> {
+        let slabs = Slabs::new(origin, dir);
+        let mut best: Option<(f32, usize, Edges)> = None;
+        let mut limit = t_max;
+        let mut pending = [(0u32, 0f32); STACK];
+        let mut len = 0;
+        let mut at = self.root;
+        loop {
+            if at & LEAF == 0 {
+                let node = &self.nodes[at as usize];
+                let (mask, near) = slabs.enter(node, limit);
+                if mask != 0 {
+                    // The nearest child next, the others pending far to near.
+                    let mut entered = [(0u32, 0f32); 4];
+                    let mut n = 0;
+                    for k in 0..4 {
+                        if mask & (1 << k) != 0 {
+                            entered[n] = (node.children[k], near[k]);
+                            n += 1;
+                        }
+                    }
+                    sort_far_to_near(&mut entered[..n]);
+                    for &e in &entered[..n - 1] {
+                        if let Some(slot) = pending.get_mut(len) {
+                            *slot = e;
+                            len += 1;
+                        }
+                    }
+                    at = entered[n - 1].0;
+                    continue;
+                }
+            } else {
+                let leaf = &self.leaves[(at & !LEAF) as usize];
+                let found = match shear.intersect(&leaf.corners, limit) {
+                    Some(hits) => hits.nearest().map(|k| {
+                        let (t, edges) = hits.lane(k);
+                        (t, k, edges)
+                    }),
+                    None => (0..leaf.count as usize)
+                        .filter_map(|k| {
+                            exact(leaf.first as usize + k, limit).map(|(t, e)| (t, k, e))
+                        })
+                        .fold(None, nearer),
+                };
+                if let Some((t, k, edges)) = found {
+                    limit = t;
+                    best = Some((t, leaf.first as usize + k, edges));
+                }
+            }
+            // The next pending child the ray may still meet before its hit.
+            loop {
+                if len == 0 {
+                    return best;
+                }
+                len -= 1;
+                let (child, near) = pending[len];
+                // As the node test's slack: a box entered where the hit
+                // was found, give or take rounding, may hold a nearer hit.
+                if near <= limit * ROBUST {
+                    at = child;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// True if the ray from `origin` along `dir` (with `shear` set up for
+    /// it) meets a triangle in (0, `t_max`); `exact` as for
+    /// [`closest`](Self::closest). Stops at the first it finds.
+    #[inline(always)]
+    pub(crate) fn blocked(
+        &self,
+        shear: &Shear4,
+        (origin, dir): (Vec3, Vec3),
+        t_max: f32,
+        exact: impl Fn(usize, f32) -> bool,
+    ) -> bool {
+        let slabs = Slabs::new(origin, dir);
+        let mut pending = [0u32; STACK];
+        let mut len = 0;
+        let mut at = self.root;
+        loop {
+            if at & LEAF == 0 {
+                let node = &self.nodes[at as usize];
+                let (mut mask, _) = slabs.enter(node, t_max);
+                if mask != 0 {
+                    at = node.children[mask.trailing_zeros() as usize];
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        if let Some(slot) = pending.get_mut(len) {
+                            *slot = node.children[mask.trailing_zeros() as usize];
+                            len += 1;
+                        }
+                        mask &= mask - 1;
+                    }
+                    continue;
+                }
+            } else {
+                let leaf = &self.leaves[(at & !LEAF) as usize];
+                let hit = match shear.intersect(&leaf.corners, t_max) {
+                    Some(hits) => hits.mask != 0,
+                    None => (0..leaf.count as usize).any(|k| exact(leaf.first as usize + k, t_max)),
+                };
+                if hit {
+                    return true;
+                }
+            }
+            if len == 0 {
+                return false;
+            }
+            len -= 1;
+            at = pending[len];
+        }
+    }
+}
+
+/// The nearer of a hit found so far and another.
+fn nearer<T>(best: Option<(f32, usize, T)>, hit: (f32, usize, T)) -> Option<(f32, usize, T)> {
+    match best {
+        Some(b) if b.0 <= hit.0 => Some(b),
+        _ => Some(hit),
+    }
+}
+
+/// Sorts up to four entered children by decreasing entry distance.
+#[inline(always)]
+fn sort_far_to_near(e: &mut [(u32, f32)]) {
+    for i in 1..e.len() {
+        let mut j = i;
+        while j > 0 && e[j - 1].1 < e[j].1 {
+            e.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::watertight::Shear;
+    use aether_core::{Pcg32, UniformSource};
+
+    /// Random triangles, some large (split into pieces by the build) and
+    /// some axis-aligned (flat boxes), and rays through and around them.
+    fn scene(seed: u64, count: usize) -> Vec<[Vec3; 3]> {
+        let mut rng = Pcg32::new(seed, 1);
+        let mut u = || rng.next_f32();
+        (0..count)
+            .map(|i| {
+                let a = Vec3::new(u(), u(), u()) * 10.0 - 5.0;
+                let size = if i % 13 == 0 { 8.0 } else { 1.0 };
+                let (b, c) = (
+                    a + Vec3::new(u(), u(), u()) * size,
+                    a + Vec3::new(u(), u(), u()) * size,
+                );
+                if i % 5 == 0 {
+                    [a, Vec3::new(b.x, b.y, a.z), Vec3::new(c.x, c.y, a.z)]
+                } else {
+                    [a, b, c]
+                }
+            })
+            .collect()
+    }
+
+    fn rays(seed: u64) -> Vec<(Vec3, Vec3, f32)> {
+        let mut rng = Pcg32::new(seed, 2);
+        let mut u = || rng.next_f32();
+        (0..3000)
+            .map(|k| {
+                let o = Vec3::new(u(), u(), u()) * 14.0 - 7.0;
+                let mut d = (Vec3::new(u(), u(), u()) - 0.5).normalize();
+                if k % 7 == 0 {
+                    d = Vec3::new(d.x, 0.0, d.z).normalize();
+                }
+                if k % 11 == 0 {
+                    d = Vec3::NEG_Z;
+                }
+                let t_max = if k % 3 == 0 { 4.0 } else { f32::INFINITY };
+                (o, d, t_max)
+            })
+            .collect()
+    }
+
+    /// The closest hit by testing every triangle: distance and triangle.
+    fn brute(tris: &[[Vec3; 3]], (o, d, t_max): (Vec3, Vec3, f32)) -> Option<(f32, usize)> {
+        let shear = Shear::new(o, d);
+        let mut best: Option<(f32, usize)> = None;
+        for (i, t) in tris.iter().enumerate() {
+            if let Some((t, _)) = shear.intersect(t, 0.0, best.map_or(t_max, |b| b.0)) {
+                best = Some((t, i));
+            }
+        }
+        best
+    }
+
+    fn tree(tris: &[[Vec3; 3]]) -> QuadBvh {
+        let b = crate::bvh::build_binary(tris, &[]).expect("a tree");
+        QuadBvh::of(&b, tris).expect("a four-wide tree")
+    }
+
+    #[test]
+    fn rays_find_the_closest_triangle_and_any_triangle() {
+        for (seed, count) in [(3, 1), (4, 3), (5, 40), (6, 500)] {
+            let tris = scene(seed, count);
+            let quad = tree(&tris);
+            let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
+            let mut hits = 0;
+            for ray in rays(seed) {
+                let (o, d, t_max) = ray;
+                let shear = Shear::new(o, d);
+                let exact = |id: usize, t: f32| shear.intersect(&ordered[id], 0.0, t);
+                let found = quad.closest(&Shear4::new(o, d), (o, d), t_max, exact);
+                let expected = brute(&tris, ray);
+                assert_eq!(found.map(|f| f.0), expected.map(|e| e.0), "{ray:?}");
+                if let (Some(f), Some(e)) = (found, expected) {
+                    assert_eq!(tris[quad.order()[f.1] as usize], tris[e.1]);
+                }
+                let blocked = quad.blocked(&Shear4::new(o, d), (o, d), t_max, |id, t| {
+                    exact(id, t).is_some()
+                });
+                assert_eq!(blocked, expected.is_some());
+                hits += usize::from(blocked);
+            }
+            if count > 10 {
+                assert!(hits > 100, "{hits} hits");
+            }
+        }
+    }
+}
