@@ -6,7 +6,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 
-use super::{LEAF, Leaf, Node, QuadBvh, STACK};
+use super::{DEEP, LEAF, Leaf, Node, QuadBvh, SHALLOW};
 
 /// Triangles a leaf holds side by side.
 const LANES: usize = 4;
@@ -35,7 +35,7 @@ struct Collapse<'a> {
 
 impl QuadBvh {
     /// The four-wide tree of `bvh`, whose primitives are `triangles`, if no
-    /// ray through it can need more pending children than its traversal
+    /// ray through it can need more pending children than a traversal
     /// holds. Leaves number their triangles by position in the tree's
     /// order, [`order`](Self::order).
     pub(crate) fn of(bvh: &Bvh2, triangles: &[[Vec3; 3]]) -> Option<Self> {
@@ -56,11 +56,12 @@ impl QuadBvh {
             order: Vec::new(),
         };
         let (root, pending) = c.collapse(Part::Subtree(0));
-        (pending <= STACK).then_some(QuadBvh {
+        (pending <= DEEP).then_some(QuadBvh {
             nodes: c.nodes,
             leaves: c.leaves,
             root,
             order: c.order,
+            deep: pending > SHALLOW,
         })
     }
 }
