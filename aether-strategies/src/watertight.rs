@@ -101,9 +101,8 @@ impl Shear {
                 largest(z),
             ],
             largest([u, w2, w]),
-            det,
         );
-        (t > bound).then_some((t, Edges([u, w2, w], det)))
+        (t * det.abs() > bound).then_some((t, Edges([u, w2, w], det)))
     }
 }
 
@@ -173,9 +172,8 @@ impl Shear4 {
                     largest(a.2, b.2, c.2),
                 ],
                 largest(u, w2, w),
-                det,
             );
-            hit &= t.cmpgt(bound);
+            hit &= (t * det.abs()).cmpgt(bound);
         }
         Some(Hits4 {
             hit,
@@ -194,47 +192,28 @@ const fn gamma(n: f32) -> f32 {
     n * e / (1.0 - n * e)
 }
 
-/// A conservative bound on the rounding error of a hit's distance, from
-/// the largest magnitudes of the sheared corners' coordinates (x, y, z),
-/// of the edge functions, and the determinant (pbrt-v4's bound, section
-/// 6.8.5): a hit no farther than this may lie behind the origin. A ray
+/// A conservative bound on the rounding error of a hit's distance times
+/// the determinant's magnitude, from the largest magnitudes of the sheared
+/// corners' coordinates (x, y, z) and of the edge functions (pbrt-v4's
+/// bound, section 6.8.5, kept multiplied so that the test of a hit needs
+/// no second division): a hit no farther than this may lie behind the
+/// origin. A ray
 /// leaving a surface point that no rounding moved off its plane (the
 /// corner of an axis-aligned floor, say) would otherwise find its own
 /// triangle a rounding error away and stop there.
 #[inline(always)]
-fn error_bound<T>([x, y, z]: [T; 3], edges: T, det: T) -> T
+fn error_bound<T>([x, y, z]: [T; 3], edges: T) -> T
 where
     T: Copy
         + std::ops::Add<Output = T>
         + std::ops::Mul<Output = T>
-        + std::ops::Div<Output = T>
-        + std::ops::Mul<f32, Output = T>
-        + Absolute,
+        + std::ops::Mul<f32, Output = T>,
 {
     let dz = z * gamma(3.0);
     let dx = (x + z) * gamma(5.0);
     let dy = (y + z) * gamma(5.0);
     let de = (x * y * gamma(2.0) + dy * x + dx * y) * 2.0;
-    (edges * z * gamma(3.0) + de * z + dz * edges) * 3.0 / det.absolute()
-}
-
-/// The absolute value, of one lane or four.
-trait Absolute {
-    fn absolute(self) -> Self;
-}
-
-impl Absolute for f32 {
-    #[inline(always)]
-    fn absolute(self) -> Self {
-        self.abs()
-    }
-}
-
-impl Absolute for Vec4 {
-    #[inline(always)]
-    fn absolute(self) -> Self {
-        self.abs()
-    }
+    (edges * z * gamma(3.0) + de * z + dz * edges) * 3.0
 }
 
 /// What [`Shear4::intersect`] finds: the lanes that hit (bits 0–3), with
