@@ -103,6 +103,29 @@ pub(crate) fn compress(bvh2: &Bvh2, count: usize) -> CwBvh {
     bvh2_to_cwbvh(bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false)
 }
 
+/// `count` random rays for the trees' tests: origin, unit direction and
+/// end, from around a box of side 10 about the origin; some directions
+/// with a zero component or along an axis, some rays ending at 4.
+#[cfg(test)]
+pub(crate) fn random_rays(seed: u64, count: usize) -> Vec<(Vec3, Vec3, f32)> {
+    let mut rng = aether_core::Pcg32::new(seed, 2);
+    let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+    (0..count)
+        .map(|k| {
+            let o = Vec3::new(u(), u(), u()) * 14.0 - 7.0;
+            let mut d = (Vec3::new(u(), u(), u()) - 0.5).normalize();
+            if k % 7 == 0 {
+                d = Vec3::new(d.x, 0.0, d.z).normalize();
+            }
+            if k % 11 == 0 {
+                d = Vec3::NEG_Z;
+            }
+            let t_max = if k % 3 == 0 { 4.0 } else { f32::INFINITY };
+            (o, d, t_max)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -299,23 +299,12 @@ mod tests {
         (bvh, ordered)
     }
 
+    /// Random rays as obvhs takes them (a negative zero in the direction
+    /// made positive, as `Geometry` does).
     fn rays(seed: u64) -> Vec<Ray> {
-        let mut rng = aether_core::Pcg32::new(seed, 2);
-        let mut u = || aether_core::UniformSource::next_f32(&mut rng);
-        (0..2000)
-            .map(|k| {
-                let o = Vec3::new(u(), u(), u()) * 14.0 - 7.0;
-                let mut d = (Vec3::new(u(), u(), u()) - 0.5).normalize();
-                // Axis-aligned directions and zero components too.
-                if k % 7 == 0 {
-                    d = Vec3::new(d.x, 0.0, d.z).normalize();
-                }
-                if k % 11 == 0 {
-                    d = Vec3::NEG_Y;
-                }
-                let t_max = if k % 3 == 0 { 4.0 } else { f32::INFINITY };
-                Ray::new(o.into(), (d + Vec3::ZERO).into(), 0.0, t_max)
-            })
+        crate::bvh::random_rays(seed, 2000)
+            .into_iter()
+            .map(|(o, d, t_max)| Ray::new(o.into(), (d + Vec3::ZERO).into(), 0.0, t_max))
             .collect()
     }
 

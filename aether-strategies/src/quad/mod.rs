@@ -346,25 +346,6 @@ mod tests {
             .collect()
     }
 
-    fn rays(seed: u64, count: usize) -> Vec<(Vec3, Vec3, f32)> {
-        let mut rng = Pcg32::new(seed, 2);
-        let mut u = || rng.next_f32();
-        (0..count)
-            .map(|k| {
-                let o = Vec3::new(u(), u(), u()) * 14.0 - 7.0;
-                let mut d = (Vec3::new(u(), u(), u()) - 0.5).normalize();
-                if k % 7 == 0 {
-                    d = Vec3::new(d.x, 0.0, d.z).normalize();
-                }
-                if k % 11 == 0 {
-                    d = Vec3::NEG_Z;
-                }
-                let t_max = if k % 3 == 0 { 4.0 } else { f32::INFINITY };
-                (o, d, t_max)
-            })
-            .collect()
-    }
-
     /// The closest hit by testing every triangle: distance and triangle.
     fn brute(tris: &[[Vec3; 3]], (o, d, t_max): (Vec3, Vec3, f32)) -> Option<(f32, usize)> {
         let shear = Shear::new(o, d);
@@ -393,7 +374,7 @@ mod tests {
             let mut hits = 0;
             // Fewer rays through the large scene: each is tested against
             // every triangle.
-            for ray in rays(seed, if count > 1000 { 400 } else { 3000 }) {
+            for ray in crate::bvh::random_rays(seed, if count > 1000 { 400 } else { 3000 }) {
                 let (o, d, t_max) = ray;
                 let shear = Shear::new(o, d);
                 let exact = |id: usize, t: f32| shear.intersect(&ordered[id], 0.0, t);
