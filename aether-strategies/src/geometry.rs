@@ -293,7 +293,10 @@ impl Geometry {
                 }
                 None => f32::INFINITY,
             }
-        }), _quad => false);
+        }), _quad => {
+            debug_assert!(false, "a tree with spheres is never four-wide");
+            false
+        });
         if hit.t >= t_max {
             return None;
         }
@@ -368,7 +371,10 @@ impl Geometry {
         !with_tree!(bvh, tree => tree.ray_traverse_miss(ray, |r, id| {
             self.tree_candidate(&shear, id, (origin, dir), r.tmax)
                 .map_or(f32::INFINITY, |h| h.0)
-        }), _quad => true)
+        }), _quad => {
+            debug_assert!(false, "a tree with spheres is never four-wide");
+            true
+        })
     }
 
     /// True if the segment between two surface points is unobstructed;

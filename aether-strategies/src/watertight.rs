@@ -58,7 +58,8 @@ impl Shear {
         }
     }
 
-    /// Distance and edge functions of the hit, if any, in (t_min, t_max).
+    /// Distance and edge functions of the hit, if any, in (t_min, t_max)
+    /// and farther than its rounding error ([`error_bound`]).
     /// Always inlined: out of line (once four traversals called it), the
     /// call cost path tracing 1.2 % more instructions.
     #[inline(always)]
@@ -112,7 +113,7 @@ impl Shear {
 pub(crate) struct Shear4 {
     axes: [usize; 3],
     origin: [Vec4; 3],
-    scale: [Vec4; 3],
+    shear: [Vec4; 3],
 }
 
 impl Shear4 {
@@ -123,24 +124,25 @@ impl Shear4 {
         Shear4 {
             axes,
             origin: axes.map(|k| Vec4::splat(o[k])),
-            scale: s.to_array().map(Vec4::splat),
+            shear: s.to_array().map(Vec4::splat),
         }
     }
 
     /// The test of [`Shear::intersect`] on four triangles at once,
     /// `corners[vertex][axis]` holding one triangle per lane: the lanes
-    /// that hit in (0, `t_max`), with their distances, edge functions and
-    /// determinants, or None where an edge function of a lane is zero, for
-    /// which the scalar test decides in double precision. Each lane's
-    /// arithmetic is the scalar test's, operation for operation: the
-    /// permutation picks whole vectors where the scalar test multiplies by
-    /// a matrix of zeros and ones, which changes nothing but the sign of a
-    /// zero.
+    /// that hit in (0, `t_max`) farther than their rounding error, with
+    /// their distances, edge functions and determinants, or None where an
+    /// edge function of a lane is zero, for which the scalar test decides
+    /// in double precision. For corners at finite offsets from the origin
+    /// each lane's arithmetic is the scalar test's, operation for
+    /// operation: the permutation picks whole vectors where the scalar
+    /// test multiplies by a matrix of zeros and ones, which changes nothing
+    /// but the sign of a zero.
     #[inline(always)]
     pub(crate) fn intersect(&self, corners: &[[Vec4; 3]; 3], t_max: f32) -> Option<Hits4> {
         let [kx, ky, kz] = self.axes;
         let [ox, oy, oz] = self.origin;
-        let [sx, sy, sz] = self.scale;
+        let [sx, sy, sz] = self.shear;
         let sheared = |v: &[Vec4; 3]| {
             let dz = v[kz] - oz;
             ((v[kx] - ox) - sx * dz, (v[ky] - oy) - sy * dz, sz * dz)
@@ -197,10 +199,9 @@ const fn gamma(n: f32) -> f32 {
 /// corners' coordinates (x, y, z) and of the edge functions (pbrt-v4's
 /// bound, section 6.8.5, kept multiplied so that the test of a hit needs
 /// no second division): a hit no farther than this may lie behind the
-/// origin. A ray
-/// leaving a surface point that no rounding moved off its plane (the
-/// corner of an axis-aligned floor, say) would otherwise find its own
-/// triangle a rounding error away and stop there.
+/// origin. A ray leaving a surface point that no rounding moved off its
+/// plane (the corner of an axis-aligned floor, say) would otherwise find
+/// its own triangle a rounding error away and stop there.
 #[inline(always)]
 fn error_bound<T>([x, y, z]: [T; 3], edges: T) -> T
 where

@@ -256,7 +256,8 @@ impl Tree {
 }
 
 /// `$body` with `$t` bound to the tree `$tree` (a `&Tree`) if it has
-/// obvhs's wide nodes, `$other` with `$quad` bound to it if it is four-wide. The body is written once but compiled per kind, so that a
+/// obvhs's wide nodes, `$other` with `$quad` bound to it if it is
+/// four-wide. The body is written once but compiled per kind, so that a
 /// primitive test written in it as a closure is a closure per traversal
 /// and inlines into it: one closure handed to both (through a method of
 /// `Tree`) stayed a call per candidate, which cost more than decoding the

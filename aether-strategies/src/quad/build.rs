@@ -36,8 +36,9 @@ struct Collapse<'a> {
 impl QuadBvh {
     /// The four-wide tree of `bvh`, whose primitives are `triangles`, if no
     /// ray through it can need more pending children than a traversal
-    /// holds. Leaves number their triangles by position in the tree's
-    /// order, [`order`](Self::order).
+    /// holds; None too for a tree that is empty, deeper than [`DEEPEST`]
+    /// or names a node or primitive it does not have. Leaves number their
+    /// triangles by position in the tree's order, [`order`](Self::order).
     pub(crate) fn of(bvh: &Bvh2, triangles: &[[Vec3; 3]]) -> Option<Self> {
         let counts = counts(bvh)?;
         if bvh
@@ -67,7 +68,7 @@ impl QuadBvh {
 }
 
 /// The number of primitives below each node of `bvh`, or None if it is
-/// empty or deeper than [`DEEPEST`].
+/// empty, deeper than [`DEEPEST`] or names a child it does not have.
 fn counts(bvh: &Bvh2) -> Option<Vec<usize>> {
     let mut counts = vec![0; bvh.nodes.len()];
     // Parents come before their children in a walk from the root: counted
@@ -105,7 +106,17 @@ impl Collapse<'_> {
         }
     }
 
+    /// The box of `part`, padded by a few units in the last place of its
+    /// coordinates: the planes of a split triangle's pieces are rounded
+    /// points of the triangle, which may fall short of it by that much
+    /// (obvhs's compressed nodes rounded every box outwards).
     fn bounds(&self, part: Part) -> Aabb {
+        let b = self.exact_bounds(part);
+        let pad = |p: Vec3A| p.abs() * (4.0 * f32::EPSILON);
+        Aabb::new(b.min - pad(b.min), b.max + pad(b.max))
+    }
+
+    fn exact_bounds(&self, part: Part) -> Aabb {
         match part {
             Part::Subtree(i) => self.bvh.nodes[i].aabb,
             Part::Run(start, len) => {
@@ -173,11 +184,11 @@ impl Collapse<'_> {
             ],
             children: [LEAF; 4],
         });
-        let mut deepest = 0;
+        let mut most_pending = 0;
         for (k, &kid) in kids.iter().enumerate() {
             let b = self.bounds(kid);
             let (child, pending) = self.collapse(kid);
-            deepest = deepest.max(pending);
+            most_pending = most_pending.max(pending);
             let node = &mut self.nodes[slot];
             node.children[k] = child;
             for a in 0..3 {
@@ -185,7 +196,7 @@ impl Collapse<'_> {
                 node.planes[2 * a + 1][k] = b.max[a];
             }
         }
-        (slot as u32, deepest + kids.len() - 1)
+        (slot as u32, most_pending + kids.len() - 1)
     }
 
     /// A leaf of the primitives of `part` (at most four).
@@ -209,9 +220,16 @@ impl Collapse<'_> {
                 }
             }
         }
-        // Pieces of one large triangle: tested once.
+        // Pieces of one large triangle: tested once. A triangle with two
+        // equal corners is never hit (its edge functions cancel exactly),
+        // and its zero edge function would send every ray through the leaf
+        // to the scalar test.
         prims.sort_unstable();
         prims.dedup();
+        prims.retain(|&p| {
+            let [a, b, c] = self.triangles[p as usize];
+            a != b && b != c && c != a
+        });
         let mut corners = [[Vec4::NAN; 3]; 3];
         for (lane, &p) in prims.iter().enumerate() {
             for (v, corner) in self.triangles[p as usize].iter().enumerate() {

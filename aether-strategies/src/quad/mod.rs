@@ -32,8 +32,11 @@ pub(super) const DEEP: usize = 64;
 /// The bit of a child reference that marks a leaf.
 const LEAF: u32 = 1 << 31;
 
-/// Slack on a box's exit distance (pbrt's 1 + 2γ₃) so that rounding never
-/// makes a ray miss the box of a triangle it hits.
+/// Slack on a box's exit distance (pbrt's 1 + 2γ₃) for the rounding of the
+/// slab distances; the boxes themselves are padded where they are built.
+/// (A direction component below f32's ε is taken as ±ε, obvhs's
+/// convention, as the old walk did: a ray almost parallel to a slab that
+/// starts a hair outside it sees the slab end sooner than it does.)
 const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 /// Four children's boxes: per axis, their lower then upper planes
@@ -103,24 +106,29 @@ impl Slabs {
         let far = t(self.far[0], 0)
             .min(t(self.far[1], 1))
             .min(t(self.far[2], 2));
-        let near = near.max(Vec4::ZERO);
-        let far = far.min(Vec4::splat(t_max)) * ROBUST;
+        // In this order a NaN distance (a ray with a NaN coordinate)
+        // survives the clamps and enters nothing: SSE's max and min return
+        // their second operand when one is NaN.
+        let near = Vec4::ZERO.max(near);
+        let far = Vec4::splat(t_max).min(far) * ROBUST;
         (near.cmple(far).bitmask(), near)
     }
 }
 
 impl QuadBvh {
     /// The primitives in the order the leaves number them: a triangle the
-    /// tree splits into pieces appears once per piece.
+    /// tree splits into pieces appears once per leaf that holds a piece of
+    /// it.
     pub(crate) fn order(&self) -> &[u32] {
         &self.order
     }
 
     /// The closest triangle the ray from `origin` along `dir` (with
-    /// `shear` set up for it) meets in (0, `t_max`): its distance, its
-    /// position in the tree's order and its edge functions. `exact` is the
-    /// scalar test of the triangle at a position, for the rare leaf where
-    /// an edge passes exactly through the ray.
+    /// `shear` set up for it) meets in (0, `t_max`), farther than the
+    /// hit's rounding error: its distance, its position in the tree's order
+    /// and its edge functions. `exact` is the scalar test of the triangle
+    /// at a position, for the rare leaf where an edge function of a lane is
+    /// exactly zero (an edge through the ray).
     #[inline(always)]
     pub(crate) fn closest(
         &self,
@@ -171,6 +179,7 @@ impl QuadBvh {
                         } else {
                             (first, second)
                         };
+                        debug_assert!(len < N, "more pending children than the build bounds");
                         if let Some(slot) = pending.get_mut(len) {
                             *slot = (node.children[b], near[b]);
                             len += 1;
@@ -189,6 +198,7 @@ impl QuadBvh {
                     }
                     sort_far_to_near(&mut entered[..n]);
                     for &e in &entered[..n - 1] {
+                        debug_assert!(len < N, "more pending children than the build bounds");
                         if let Some(slot) = pending.get_mut(len) {
                             *slot = e;
                             len += 1;
@@ -271,6 +281,7 @@ impl QuadBvh {
                     at = node.children[mask.trailing_zeros() as usize];
                     mask &= mask - 1;
                     while mask != 0 {
+                        debug_assert!(len < N, "more pending children than the build bounds");
                         if let Some(slot) = pending.get_mut(len) {
                             *slot = node.children[mask.trailing_zeros() as usize];
                             len += 1;
@@ -396,5 +407,75 @@ mod tests {
         }
         // Both sizes of the pending list.
         assert!((1..5).contains(&deep), "{deep} deep trees");
+    }
+
+    /// A floor of unit squares at z = 0, two triangles each, corners on
+    /// integers: rays through its shared edges and corners meet edge
+    /// functions that are exactly zero.
+    fn floor() -> Vec<[Vec3; 3]> {
+        let mut tris = Vec::new();
+        for i in -4..4 {
+            for j in -4..4 {
+                let p = |x: i32, y: i32| Vec3::new(x as f32, y as f32, 0.0);
+                tris.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+                tris.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+            }
+        }
+        tris
+    }
+
+    #[test]
+    fn rays_through_shared_edges_and_corners_hit_the_floor() {
+        let tris = floor();
+        let quad = tree(&tris);
+        let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
+        for x in -6..=6 {
+            for y in -6..=6 {
+                // Through a corner, an edge or a diagonal at (x/2, y/2, 0):
+                // straight down, and slanted.
+                let target = Vec3::new(x as f32 * 0.5, y as f32 * 0.5, 0.0);
+                for d in [Vec3::NEG_Z, Vec3::new(0.5, 0.0, -1.0).normalize()] {
+                    let o = target - d * (2.0 / -d.z);
+                    let shear = Shear::new(o, d);
+                    let exact = |id: usize, t: f32| shear.intersect(&ordered[id], 0.0, t);
+                    let found = quad.closest(&Shear4::new(o, d), (o, d), f32::INFINITY, exact);
+                    let expected = brute(&tris, (o, d, f32::INFINITY));
+                    assert_eq!(found.map(|f| f.0), expected.map(|e| e.0), "{o} {d}");
+                    let blocked =
+                        quad.blocked(&Shear4::new(o, d), (o, d), f32::INFINITY, |id, t| {
+                            exact(id, t).is_some()
+                        });
+                    assert_eq!(blocked, expected.is_some());
+                    // Inside the floor nothing slips through an edge.
+                    if target.x.abs() < 4.0 && target.y.abs() < 4.0 {
+                        assert!(found.is_some(), "{o} {d} fell through");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_ray_leaving_the_floor_does_not_hit_it() {
+        let tris = floor();
+        let quad = tree(&tris);
+        let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
+        let mut rng = Pcg32::new(11, 3);
+        let mut u = || rng.next_f32();
+        for _ in 0..2000 {
+            // A point exactly on the plane, no offset, leaving upwards at
+            // any angle: its own triangle is a rounding error away.
+            let o = Vec3::new(u() * 7.0 - 3.5, u() * 7.0 - 3.5, 0.0);
+            let d = Vec3::new(u() - 0.5, u() - 0.5, u() * 0.5 + 1e-3).normalize();
+            let shear = Shear::new(o, d);
+            let exact = |id: usize, t: f32| shear.intersect(&ordered[id], 0.0, t);
+            let found = quad.closest(&Shear4::new(o, d), (o, d), f32::INFINITY, exact);
+            assert!(
+                found.is_none(),
+                "{o} {d} hit its own floor at {found:?}",
+                found = found.map(|f| f.0)
+            );
+            assert!(brute(&tris, (o, d, f32::INFINITY)).is_none());
+        }
     }
 }
