@@ -240,13 +240,13 @@ impl Tree {
 
     /// The tree for rays of the binary tree `bvh` over `triangles`
     /// followed by `spheres` spheres, and its order of the primitives (the
-    /// concatenation's indices, a large triangle split into pieces once per
-    /// piece), by which rays number what they hit.
+    /// concatenation's indices; a large triangle split into pieces once per
+    /// piece, or in a four-wide tree once per leaf holding a piece), by
+    /// which rays number what they hit.
     pub(crate) fn build(bvh: &Bvh2, triangles: &[[Vec3; 3]], spheres: usize) -> (Self, Vec<u32>) {
         if spheres == 0
-            && let Some(quad) = QuadBvh::of(bvh, triangles)
+            && let Some((quad, order)) = QuadBvh::of(bvh, triangles)
         {
-            let order = quad.order().to_vec();
             return (Tree::Quad(quad), order);
         }
         let wide = crate::bvh::compress(bvh, triangles.len() + spheres);

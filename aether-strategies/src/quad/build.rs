@@ -37,9 +37,11 @@ impl QuadBvh {
     /// The four-wide tree of `bvh`, whose primitives are `triangles`, if no
     /// ray through it can need more pending children than a traversal
     /// holds; None too for a tree that is empty, deeper than [`DEEPEST`]
-    /// or names a node or primitive it does not have. Leaves number their
-    /// triangles by position in the tree's order, [`order`](Self::order).
-    pub(crate) fn of(bvh: &Bvh2, triangles: &[[Vec3; 3]]) -> Option<Self> {
+    /// or names a node or primitive it does not have. With the tree, the
+    /// primitives (the binary tree's indices) in the order its leaves number
+    /// them: a triangle the tree splits into pieces appears once per leaf
+    /// that holds a piece of it.
+    pub(crate) fn of(bvh: &Bvh2, triangles: &[[Vec3; 3]]) -> Option<(Self, Vec<u32>)> {
         let counts = counts(bvh)?;
         if bvh
             .primitive_indices
@@ -57,13 +59,13 @@ impl QuadBvh {
             order: Vec::new(),
         };
         let (root, pending) = c.collapse(Part::Subtree(0));
-        (pending <= DEEP).then_some(QuadBvh {
+        let tree = QuadBvh {
             nodes: c.nodes,
             leaves: c.leaves,
             root,
-            order: c.order,
             deep: pending > SHALLOW,
-        })
+        };
+        (pending <= DEEP).then_some((tree, c.order))
     }
 }
 

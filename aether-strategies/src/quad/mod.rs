@@ -58,15 +58,12 @@ struct Leaf {
     count: u32,
 }
 
-/// The four-wide tree: nodes, leaves, the child reference of the root,
-/// and the primitives (the binary tree's indices) in the order its leaves
-/// number them.
+/// The four-wide tree: nodes, leaves and the child reference of the root.
 #[derive(Debug)]
 pub(crate) struct QuadBvh {
     nodes: Vec<Node>,
     leaves: Vec<Leaf>,
     root: u32,
-    order: Vec<u32>,
     /// Whether a ray can need more than [`SHALLOW`] pending children.
     deep: bool,
 }
@@ -116,13 +113,6 @@ impl Slabs {
 }
 
 impl QuadBvh {
-    /// The primitives in the order the leaves number them: a triangle the
-    /// tree splits into pieces appears once per leaf that holds a piece of
-    /// it.
-    pub(crate) fn order(&self) -> &[u32] {
-        &self.order
-    }
-
     /// The closest triangle the ray from `origin` along `dir` (with
     /// `shear` set up for it) meets in (0, `t_max`), farther than the
     /// hit's rounding error: its distance, its position in the tree's order
@@ -369,9 +359,13 @@ mod tests {
         best
     }
 
-    fn tree(tris: &[[Vec3; 3]]) -> QuadBvh {
+    /// The four-wide tree of `tris`, its order of them, and the triangles
+    /// in that order (as `Geometry` keeps them, for the scalar test).
+    fn tree(tris: &[[Vec3; 3]]) -> (QuadBvh, Vec<u32>, Vec<[Vec3; 3]>) {
         let b = crate::bvh::build_binary(tris, &[]).expect("a tree");
-        QuadBvh::of(&b, tris).expect("a four-wide tree")
+        let (quad, order) = QuadBvh::of(&b, tris).expect("a four-wide tree");
+        let ordered = order.iter().map(|&i| tris[i as usize]).collect();
+        (quad, order, ordered)
     }
 
     #[test]
@@ -379,9 +373,8 @@ mod tests {
         let mut deep = 0;
         for (seed, count) in [(3, 1), (4, 3), (5, 40), (6, 500), (7, 20000)] {
             let tris = scene(seed, count);
-            let quad = tree(&tris);
+            let (quad, order, ordered) = tree(&tris);
             deep += usize::from(quad.deep);
-            let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
             let mut hits = 0;
             // Fewer rays through the large scene: each is tested against
             // every triangle.
@@ -393,7 +386,7 @@ mod tests {
                 let expected = brute(&tris, ray);
                 assert_eq!(found.map(|f| f.0), expected.map(|e| e.0), "{ray:?}");
                 if let (Some(f), Some(e)) = (found, expected) {
-                    assert_eq!(tris[quad.order()[f.1] as usize], tris[e.1]);
+                    assert_eq!(tris[order[f.1] as usize], tris[e.1]);
                 }
                 let blocked = quad.blocked(&Shear4::new(o, d), (o, d), t_max, |id, t| {
                     exact(id, t).is_some()
@@ -427,8 +420,7 @@ mod tests {
     #[test]
     fn rays_through_shared_edges_and_corners_hit_the_floor() {
         let tris = floor();
-        let quad = tree(&tris);
-        let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
+        let (quad, _, ordered) = tree(&tris);
         for x in -6..=6 {
             for y in -6..=6 {
                 // Through a corner, an edge or a diagonal at (x/2, y/2, 0):
@@ -458,8 +450,7 @@ mod tests {
     #[test]
     fn a_ray_leaving_the_floor_does_not_hit_it() {
         let tris = floor();
-        let quad = tree(&tris);
-        let ordered: Vec<[Vec3; 3]> = quad.order().iter().map(|&i| tris[i as usize]).collect();
+        let (quad, _, ordered) = tree(&tris);
         let mut rng = Pcg32::new(11, 3);
         let mut u = || rng.next_f32();
         for _ in 0..2000 {
