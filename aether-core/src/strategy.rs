@@ -246,14 +246,16 @@ pub trait DynStrategy<V> {
     /// one distribution: a vertex that another strategy produced there
     /// (direct light sampling's, say), whose MIS weight needs this
     /// strategy's density for it. The same numbers as the two calls, with
-    /// the distribution built once.
+    /// the distribution built once. `other` pairs that vertex with where
+    /// its density goes: the step is returned alone, as
+    /// [`sample_step`](Self::sample_step) returns it.
     fn sample_step_measuring(
         &self,
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-        other: &V,
-    ) -> (Sampled, Density);
+        other: (&V, &mut Density),
+    ) -> Sampled;
 }
 
 /// The type-erased form of a [`PairStrategy`]; implemented for every pair
@@ -341,7 +343,7 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
     ) -> Sampled {
-        step(self, prefix, rng, out, None).0
+        step(self, prefix, rng, out, None)
     }
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
         self.distribution(prefix)
@@ -352,8 +354,8 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-        other: &V,
-    ) -> (Sampled, Density) {
+        other: (&V, &mut Density),
+    ) -> Sampled {
         step(self, prefix, rng, out, Some(other))
     }
 }
@@ -370,14 +372,14 @@ fn step<V: Vertex, S: Strategy<V> + ?Sized>(
     prefix: Prefix<'_, V>,
     rng: &mut dyn UniformSource,
     out: &mut SmallVec<[V; 2]>,
-    other: Option<&V>,
-) -> (Sampled, Density) {
+    other: Option<(&V, &mut Density)>,
+) -> Sampled {
     let d = strategy.distribution(prefix);
-    let other = other.map_or(Density::zero(Measure::Area), |v| {
-        d.density(&Step::Vertex(v.clone()))
-    });
+    if let Some((v, measured)) = other {
+        *measured = d.density(&Step::Vertex(v.clone()));
+    }
     let traits = (strategy.memory(), strategy.depth_class(prefix.len()));
-    (run(&d, rng, |v| out.push(v), traits), other)
+    run(&d, rng, |v| out.push(v), traits)
 }
 
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
