@@ -196,6 +196,7 @@ where
         let density = self.density(&s.value);
         Some(Sample::new(s.value, density))
     }
+    #[inline]
     fn density(&self, v: &D::Value) -> Density {
         let choice = self.choice.borrow();
         // One branch (a diffuse or a rough metal's single lobe) is a sum of

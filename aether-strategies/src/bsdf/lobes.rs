@@ -48,22 +48,37 @@ fn glossy(r: Roughness, given: Vec3) -> Lobe {
     Either::Right(Either::Left(Reflect::new(given, normals(r, given))))
 }
 
-/// The smooth transmission lobe. Path densities express every Dirac lobe in
+/// The smooth transmission lobe, for the direction `t` that `given`
+/// refracts into. Path densities express every Dirac lobe in
 /// the direction towards the light end of the path (the one camera paths
 /// sample), so a light path, which samples the other direction, refracts
 /// the direction it came from: the language carries the atom into the
 /// refracted direction with Snell's Jacobian (dω_light / dω_camera, checked
 /// by the harness). Then f / p is the same expression whichever end sampled
 /// the refraction, and MIS compares like with like.
-fn transmit(given: Vec3, eta: f32, mode: Transport) -> Option<Lobe> {
-    let t = aether_core::refract(given, Vec3::Z, eta)?;
+fn transmit(given: Vec3, t: Vec3, eta: f32, mode: Transport) -> Lobe {
     let dirac = match mode {
         Transport::Radiance => Either::Left(DiracDirection::new(t, 1.0)),
         Transport::Importance => {
             Either::Right(SmoothRefraction::new(DiracDirection::new(given, 1.0), eta))
         }
     };
-    Some(Either::Left(Either::Right(dirac)))
+    Either::Left(Either::Right(dirac))
+}
+
+/// Which lobe, with what it needs beyond the direction the path arrived
+/// along: the lobes themselves (72 bytes each) are built where they are
+/// sampled or evaluated. Built up front, they made [`Lobes`] 200 bytes,
+/// written at every scattering event and every density of BSDF sampling
+/// and copied through each layer of the strategy around it.
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    Diffuse,
+    Mirror,
+    Glossy(Roughness),
+    /// Smooth transmission into the refracted direction.
+    Transmit(Vec3),
+    RoughTransmit(Roughness),
 }
 
 /// The sampling of a material at a shading point, for the direction
@@ -75,7 +90,10 @@ pub struct Lobes {
     /// As many lobes as `choice` has outcomes (a single lobe is repeated):
     /// an array rather than a list, so that a density is no spill check
     /// away from its lobe.
-    lobes: [Lobe; 2],
+    kinds: [Kind; 2],
+    given: Vec3,
+    eta: f32,
+    mode: Transport,
 }
 
 impl Lobes {
@@ -85,43 +103,50 @@ impl Lobes {
     #[must_use]
     #[inline(always)]
     pub fn of(material: &Material, given: Vec3, eta: f32, mode: Transport) -> Lobes {
-        let single = |lobe| Lobes {
-            choice: DiscreteDistribution::new(&[1.0]).expect("one weight"),
-            lobes: [lobe; 2],
+        let lobes = |choice, kinds| Lobes {
+            choice,
+            kinds,
+            given,
+            eta,
+            mode,
         };
-        let pair = |p: f64, a, b| Lobes {
-            choice: DiscreteDistribution::new(&[p, 1.0 - p]).expect("positive"),
-            lobes: [a, b],
+        let single = |kind| {
+            lobes(
+                DiscreteDistribution::new(&[1.0]).expect("one weight"),
+                [kind; 2],
+            )
+        };
+        let pair = |p: f64, a, b| {
+            lobes(
+                DiscreteDistribution::new(&[p, 1.0 - p]).expect("positive"),
+                [a, b],
+            )
         };
         match material {
-            Material::Diffuse { .. } => single(diffuse()),
+            Material::Diffuse { .. } => single(Kind::Diffuse),
             Material::Conductor {
                 roughness: None, ..
-            } => single(mirror(given)),
+            } => single(Kind::Mirror),
             Material::Conductor {
                 roughness: Some(r), ..
-            } => single(glossy(*r, given)),
+            } => single(Kind::Glossy(*r)),
             Material::Dielectric { roughness, .. } => {
                 let f = f64::from(fresnel_dielectric(given.z, eta)).clamp(1e-3, 1.0 - 1e-3);
                 match roughness {
-                    None => match transmit(given, eta, mode) {
-                        Some(t) => pair(f, mirror(given), t),
-                        None => single(mirror(given)),
+                    None => match aether_core::refract(given, Vec3::Z, eta) {
+                        Some(t) => pair(f, Kind::Mirror, Kind::Transmit(t)),
+                        None => single(Kind::Mirror),
                     },
-                    Some(r) => pair(
-                        f,
-                        glossy(*r, given),
-                        Either::Right(Either::Right(Refract::new(given, eta, normals(*r, given)))),
-                    ),
+                    Some(r) => pair(f, Kind::Glossy(*r), Kind::RoughTransmit(*r)),
                 }
             }
             Material::Plastic { roughness, .. } => {
                 let f = f64::from(fresnel_dielectric(given.z, eta)).clamp(0.05, 0.95);
                 let specular = match roughness {
-                    None => mirror(given),
-                    Some(r) => glossy(*r, given),
+                    None => Kind::Mirror,
+                    Some(r) => Kind::Glossy(*r),
                 };
-                pair(f, specular, diffuse())
+                pair(f, specular, Kind::Diffuse)
             }
             Material::BumpMap { inner, .. } | Material::TwoSided(inner) => {
                 Lobes::of(inner, given, eta, mode)
@@ -129,8 +154,25 @@ impl Lobes {
         }
     }
 
+    /// Lobe `i`, built for the direction the path arrived along.
+    #[inline(always)]
+    fn lobe(&self, i: usize) -> Lobe {
+        let given = self.given;
+        match self.kinds[i & 1] {
+            Kind::Diffuse => diffuse(),
+            Kind::Mirror => mirror(given),
+            Kind::Glossy(r) => glossy(r, given),
+            Kind::Transmit(t) => transmit(given, t, self.eta, self.mode),
+            Kind::RoughTransmit(r) => Either::Right(Either::Right(Refract::new(
+                given,
+                self.eta,
+                normals(r, given),
+            ))),
+        }
+    }
+
     fn mixture(&self) -> impl Distribution<Value = Vec3> + '_ {
-        Mixture::new(&self.choice, 2, move |i| &self.lobes[i])
+        Mixture::new(&self.choice, 2, move |i| self.lobe(i))
     }
 }
 
@@ -143,6 +185,10 @@ impl Distribution for Lobes {
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
         self.mixture().sample(u)
     }
+    // Inline with the mixture, which builds the lobe it evaluates: out of
+    // line, a density's match over the lobes ran apart from the caller
+    // that knew the material.
+    #[inline(always)]
     fn density(&self, w: &Vec3) -> Density {
         self.mixture().density(w)
     }
