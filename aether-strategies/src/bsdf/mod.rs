@@ -215,19 +215,23 @@ impl<'s> Bsdf<'s> {
         if cos_geometric == 0.0 {
             return Vec3::ZERO;
         }
-        let mut wi = self.frame.to_local(to_light);
-        let mut wo = self.frame.to_local(to_camera);
-        if self.two_sided && wo.z < 0.0 {
-            wi.z = -wi.z;
-            wo.z = -wo.z;
-        }
-        // The diffuse lobe here, the others out of line: inlined whole,
-        // the microfacet lobes made every evaluation pay for their frame.
+        // The diffuse lobe reads only the cosines: the rest of the local
+        // directions (four dot products) only for the other lobes, out of
+        // line (inlined whole, the microfacet lobes made every evaluation
+        // pay for their frame).
+        let n = self.frame.n;
+        let flip = |z: f32, wo_z: f32| if self.two_sided && wo_z < 0.0 { -z } else { z };
+        let (zi, zo) = (to_light.dot(n), to_camera.dot(n));
+        let (zi, zo) = (flip(zi, zo), flip(zo, zo));
         let f = match self.material {
-            Material::Diffuse { reflectance } => diffuse(reflectance, self.uv, wi, wo),
-            material => eval_local(material, self.uv, wi, wo),
+            Material::Diffuse { reflectance } => diffuse(reflectance, self.uv, zi, zo),
+            material => {
+                let local =
+                    |v: Vec3, z: f32| Vec3::new(v.dot(self.frame.s), v.dot(self.frame.t), z);
+                eval_local(material, self.uv, local(to_light, zi), local(to_camera, zo))
+            }
         };
-        f * (wi.z.abs() / cos_geometric)
+        f * (zi.abs() / cos_geometric)
     }
 
     /// The distribution of the next direction for a path that arrived along
@@ -320,8 +324,8 @@ fn internal_diffuse_reflectance(eta: f32) -> f32 {
 /// The diffuse lobe's f(wi → wo) in the shading frame (zero unless both
 /// leave the front side).
 #[inline]
-fn diffuse(reflectance: &Texture, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
-    if wi.z > 0.0 && wo.z > 0.0 {
+fn diffuse(reflectance: &Texture, uv: Vec2, cos_i: f32, cos_o: f32) -> Vec3 {
+    if cos_i > 0.0 && cos_o > 0.0 {
         rgb(reflectance.eval(uv.to_array())) / PI
     } else {
         Vec3::ZERO
@@ -334,7 +338,7 @@ fn diffuse(reflectance: &Texture, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
 fn eval_local(material: &Material, uv: Vec2, wi: Vec3, wo: Vec3) -> Vec3 {
     let reflection = wi.z > 0.0 && wo.z > 0.0;
     match material {
-        Material::Diffuse { reflectance } => diffuse(reflectance, uv, wi, wo),
+        Material::Diffuse { reflectance } => diffuse(reflectance, uv, wi.z, wo.z),
         Material::Conductor {
             ior,
             specular_reflectance,
