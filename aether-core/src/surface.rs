@@ -108,14 +108,13 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Step<V>>> {
         let w = self.directions.sample(u)?;
-        match self.scene.cast(self.from, w.value) {
-            Some(hit) => {
-                let origin = self.scene.origin(self.from, w.value);
+        match self.scene.cast_from(self.from, w.value) {
+            (origin, Some(hit)) => {
                 let (_, factor) = direction_to(origin, &hit)?;
                 let density = w.density.convert(factor, measure_of(&hit));
                 Some(Sample::new(Step::Vertex(hit), density))
             }
-            None => Some(Sample::new(
+            (_, None) => Some(Sample::new(
                 Step::Missed,
                 Density::zero(Measure::SolidAngle),
             )),

@@ -55,6 +55,16 @@ pub trait RayCaster<V> {
         let _ = toward;
         from.position()
     }
+
+    /// [`cast`](Self::cast), with the [`origin`](Self::origin) the ray
+    /// left from: a sampled edge's density is measured from it, and a
+    /// caster that offsets origins finds it once for both.
+    fn cast_from(&self, from: &V, direction: Vec3) -> (Vec3, Option<V>)
+    where
+        V: Vertex,
+    {
+        (self.origin(from, direction), self.cast(from, direction))
+    }
 }
 
 impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
@@ -66,5 +76,11 @@ impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
         V: Vertex,
     {
         (**self).origin(from, toward)
+    }
+    fn cast_from(&self, from: &V, direction: Vec3) -> (Vec3, Option<V>)
+    where
+        V: Vertex,
+    {
+        (**self).cast_from(from, direction)
     }
 }

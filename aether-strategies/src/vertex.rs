@@ -245,24 +245,13 @@ impl RayCaster<SceneVertex> for Scene {
     }
 
     fn cast(&self, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
+        self.cast_from(from, direction).1
+    }
+
+    #[inline(always)]
+    fn cast_from(&self, from: &SceneVertex, direction: Vec3) -> (Vec3, Option<SceneVertex>) {
         let origin = self.origin(from, direction);
-        let hit = self.geometry.intersect(origin, direction, f32::INFINITY);
-        // A thin lens's aperture is a surface: light paths reach the camera
-        // on it, and it stops what crosses it (rays leaving it cannot).
-        if let Some(a) = self.aperture().filter(|_| from.site != Site::Lens) {
-            let far = hit
-                .as_ref()
-                .map_or(f32::INFINITY, |h| (h.position - origin).length());
-            if let Some(p) = a.crossing(origin, direction, far) {
-                return Some(SceneVertex::lens(p, a.axis));
-            }
-        }
-        match hit {
-            Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
-            None => self
-                .has_environment()
-                .then(|| SceneVertex::environment(direction)),
-        }
+        (origin, self.cast_at(origin, from, direction))
     }
 }
 
@@ -291,6 +280,29 @@ impl Aperture {
 }
 
 impl Scene {
+    /// The first vertex a ray from `origin` (the offset position of
+    /// `from`) meets along `direction`.
+    #[inline(always)]
+    fn cast_at(&self, origin: Vec3, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
+        let hit = self.geometry.intersect(origin, direction, f32::INFINITY);
+        // A thin lens's aperture is a surface: light paths reach the camera
+        // on it, and it stops what crosses it (rays leaving it cannot).
+        if let Some(a) = self.aperture().filter(|_| from.site != Site::Lens) {
+            let far = hit
+                .as_ref()
+                .map_or(f32::INFINITY, |h| (h.position - origin).length());
+            if let Some(p) = a.crossing(origin, direction, far) {
+                return Some(SceneVertex::lens(p, a.axis));
+            }
+        }
+        match hit {
+            Some(hit) => Some(SceneVertex::from_hit(&hit, self.shape_of(hit.primitive))),
+            None => self
+                .has_environment()
+                .then(|| SceneVertex::environment(direction)),
+        }
+    }
+
     /// The camera's aperture, if it is a thin lens.
     #[must_use]
     pub fn aperture(&self) -> Option<Aperture> {
