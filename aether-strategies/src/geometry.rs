@@ -113,6 +113,24 @@ pub fn rays_cast() -> u64 {
     RAYS.with(std::cell::Cell::get)
 }
 
+/// True if `x` is finite: `x − x` is zero exactly for finite `x`. Two
+/// float instructions, where `f32::is_finite` compiled to tests of the
+/// bits with branches.
+#[inline(always)]
+#[allow(clippy::eq_op)]
+pub(crate) fn finite(x: f32) -> bool {
+    x - x == 0.0
+}
+
+/// `v` scaled to unit length, or `None` if its length is zero, infinite
+/// or NaN: glam's `try_normalize`, with its test of the reciprocal length
+/// made of two float comparisons (every edge of every path is normalized).
+#[inline(always)]
+pub(crate) fn unit(v: Vec3) -> Option<Vec3> {
+    let rcp = v.length_recip();
+    (finite(rcp) && rcp > 0.0).then(|| v * rcp)
+}
+
 /// The origin of a ray leaving a surface point `p` (with error bound
 /// `error` and normal `n`) in direction `dir`: `p` pushed along the normal,
 /// to the side of `dir`, past its rounding error.
@@ -387,7 +405,7 @@ impl Geometry {
         let ob = offset_origin(pb, eb, nb, pa - pb);
         let d = ob - oa;
         let dist = d.length();
-        if dist == 0.0 || !dist.is_finite() {
+        if dist == 0.0 || !finite(dist) {
             return true;
         }
         !self.occluded(oa, d / dist, dist * (1.0 - 1e-4))
@@ -445,9 +463,7 @@ impl Geometry {
             geometric_normal
         } else {
             let n = idx.map(|k| mesh.normals[k as usize]);
-            (b[0] * n[0] + b[1] * n[1] + b[2] * n[2])
-                .try_normalize()
-                .unwrap_or(geometric_normal)
+            unit(b[0] * n[0] + b[1] * n[1] + b[2] * n[2]).unwrap_or(geometric_normal)
         };
         let uv = if mesh.uvs.is_empty() {
             Vec2::new(b[1], b[2])

@@ -3,7 +3,7 @@
 use aether_core::{Geometry as Place, RayCaster, Recycle, Vertex};
 use glam::{Vec2, Vec3};
 
-use crate::geometry::{Hit, Primitive, offset_origin};
+use crate::geometry::{Hit, Primitive, offset_origin, unit};
 use crate::mesh::TrianglePlane;
 use crate::scene::Scene;
 
@@ -162,7 +162,7 @@ impl SceneVertex {
         if let Site::Environment { direction } | Site::Distant { direction, .. } = &self.site {
             return Some(-*direction);
         }
-        (other.position - self.position).try_normalize()
+        unit(other.position - self.position)
     }
 
     /// The unit directions from this vertex to `other` and back: what
@@ -176,7 +176,7 @@ impl SceneVertex {
         if self.is_at_infinity() || other.is_at_infinity() {
             return self.direction_to(other).zip(other.direction_to(self));
         }
-        let d = (other.position - self.position).try_normalize()?;
+        let d = unit(other.position - self.position)?;
         Some((d, -d))
     }
 
