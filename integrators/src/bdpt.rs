@@ -189,16 +189,17 @@ fn one<'a>(s: &'a dyn DynStrategy<SceneVertex>) -> StrategyRef<'a, SceneVertex> 
 }
 
 /// Samples `first`, then `next` until a step fails or the path has `max` vertices.
+/// Into `path`, in place: a path returned by value (about 3 KB) was copied
+/// by `memcpy`, twice per sample.
 fn walk<'a>(
+    path: &mut Path<'a>,
     first: [&'a dyn DynStrategy<SceneVertex>; 2],
     next: &'a dyn DynStrategy<SceneVertex>,
     max: usize,
     rng: &mut Rng,
-) -> Path<'a> {
-    let mut path = RandomSequence::new();
+) {
     path.append(first[0]).append(first[1]);
     path.repeat(next, max, rng);
-    path
 }
 
 /// A path BDPT estimated, with its MIS-weighted contribution summed over
@@ -259,12 +260,16 @@ impl Bdpt<'_> {
                 c.append_sample(&kit.lens, rng);
                 c
             }
-            _ => walk([&kit.lens, &kit.look], &kit.scatter, s, rng),
+            _ => {
+                let mut c = RandomSequence::new();
+                walk(&mut c, [&kit.lens, &kit.look], &kit.scatter, s, rng);
+                c
+            }
         };
-        let light = match t {
-            0 | 1 => RandomSequence::new(),
-            _ => walk([&kit.emit, &kit.leave], &kit.gather, t, rng),
-        };
+        let mut light = RandomSequence::new();
+        if t >= 2 {
+            walk(&mut light, [&kit.emit, &kit.leave], &kit.gather, t, rng);
+        }
         if cam.len() != s || (t >= 2 && light.len() != t) {
             return Vec3::ZERO;
         }
@@ -305,12 +310,15 @@ impl Bdpt<'_> {
             return Vec3::ZERO;
         };
         let (kit, max, f) = (&kit, self.max_vertices, kit.f);
-        let cam = walk([&kit.lens, &kit.look], &kit.scatter, max, rng);
+        let (mut cam, mut light) = (RandomSequence::new(), RandomSequence::new());
+        walk(&mut cam, [&kit.lens, &kit.look], &kit.scatter, max, rng);
         // Light paths may reach a thin lens (s = 0) with the last vertex.
         let reach = max - usize::from(!self.lens);
-        let light = walk([&kit.emit, &kit.leave], &kit.gather, reach, rng);
-        let eye = Subpath::of(f, End::Camera, cam.vertices());
-        let ends = (&light, &Subpath::of(f, End::Light, light.vertices()));
+        walk(&mut light, [&kit.emit, &kit.leave], &kit.gather, reach, rng);
+        let (mut eye, mut lamp) = (Subpath::new(f, End::Camera), Subpath::new(f, End::Light));
+        eye.extend(cam.vertices());
+        lamp.extend(light.vertices());
+        let ends = (&light, &lamp);
         let joins = self.joins(kit, (&cam, &light));
         let mut run = Run::new(kit, pixel, rng, splats, seeds, joins);
         let mut radiance = self.reach_lens(&mut run, ends);
