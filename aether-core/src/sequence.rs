@@ -573,17 +573,15 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     ) -> (StepKind, Density) {
         let mut out = SmallVec::<[V; 2]>::new();
         let prefix = Prefix::forward(&self.vertices);
-        // The step comes back alone and the other density through a
-        // reference: returned together (56 bytes), they were copied out of
-        // the callee's record in wide loads over narrow stores, which the
-        // processor cannot forward.
-        let mut measured = Density::zero(Measure::Area);
-        let sampled = match (measure, strategy) {
+        let (sampled, measured) = match (measure, strategy) {
             (Some(other), StrategyRef::One(s)) => {
                 count_evaluation();
-                s.sample_step_measuring(prefix, rng, &mut out, (other, &mut measured))
+                s.sample_step_measuring(prefix, rng, &mut out, other)
             }
-            _ => strategy.sample_step(prefix, rng, &mut out),
+            _ => (
+                strategy.sample_step(prefix, rng, &mut out),
+                Density::zero(Measure::Area),
+            ),
         };
         let (kind, density) = (sampled.kind, sampled.density);
         if kind != StepKind::Vertex {

@@ -246,16 +246,14 @@ pub trait DynStrategy<V> {
     /// one distribution: a vertex that another strategy produced there
     /// (direct light sampling's, say), whose MIS weight needs this
     /// strategy's density for it. The same numbers as the two calls, with
-    /// the distribution built once. `other` pairs that vertex with where
-    /// its density goes: the step is returned alone, as
-    /// [`sample_step`](Self::sample_step) returns it.
+    /// the distribution built once.
     fn sample_step_measuring(
         &self,
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-        other: (&V, &mut Density),
-    ) -> Sampled;
+        other: &V,
+    ) -> (Sampled, Density);
 }
 
 /// The type-erased form of a [`PairStrategy`]; implemented for every pair
@@ -343,7 +341,7 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
     ) -> Sampled {
-        step(self, prefix, rng, out, None)
+        step(self, prefix, rng, out, None).0
     }
     fn density_of(&self, prefix: Prefix<'_, V>, target: &V) -> Density {
         self.distribution(prefix)
@@ -354,8 +352,8 @@ impl<V: Vertex, S: Strategy<V>> DynStrategy<V> for S {
         prefix: Prefix<'_, V>,
         rng: &mut dyn UniformSource,
         out: &mut SmallVec<[V; 2]>,
-        other: (&V, &mut Density),
-    ) -> Sampled {
+        other: &V,
+    ) -> (Sampled, Density) {
         step(self, prefix, rng, out, Some(other))
     }
 }
@@ -372,14 +370,14 @@ fn step<V: Vertex, S: Strategy<V> + ?Sized>(
     prefix: Prefix<'_, V>,
     rng: &mut dyn UniformSource,
     out: &mut SmallVec<[V; 2]>,
-    other: Option<(&V, &mut Density)>,
-) -> Sampled {
+    other: Option<&V>,
+) -> (Sampled, Density) {
     let d = strategy.distribution(prefix);
-    if let Some((v, measured)) = other {
-        *measured = d.density(&Step::Vertex(v.clone()));
-    }
+    let other = other.map_or(Density::zero(Measure::Area), |v| {
+        d.density(&Step::Vertex(v.clone()))
+    });
     let traits = (strategy.memory(), strategy.depth_class(prefix.len()));
-    run(&d, rng, |v| out.push(v), traits)
+    (run(&d, rng, |v| out.push(v), traits), other)
 }
 
 impl<V: Vertex, S: PairStrategy<V>> DynPairStrategy<V> for S {
