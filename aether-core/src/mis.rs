@@ -4,7 +4,7 @@ use std::cell::RefCell;
 
 use smallvec::SmallVec;
 
-use crate::density::{Density, Measure, PathDensity, finite};
+use crate::density::{Density, Measure, PathDensity, is_finite};
 use crate::sequence::{FactorKey, RandomSequence, Span};
 use crate::vertex::Vertex;
 
@@ -48,7 +48,7 @@ impl Heuristic {
                 Heuristic::Power(beta) => r.powf(beta),
             };
         }
-        if finite(sum) && sum > 0.0 {
+        if is_finite(sum) && sum > 0.0 {
             1.0 / sum
         } else {
             0.0

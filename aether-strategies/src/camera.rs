@@ -14,7 +14,7 @@ use aether_core::{
 };
 use glam::{Mat4, Vec2, Vec3};
 
-use crate::geometry::finite;
+use crate::geometry::is_finite;
 use crate::scene::Scene;
 use crate::vertex::{SceneVertex, Site};
 
@@ -232,14 +232,14 @@ impl Camera {
         }
         let q = local.truncate() / local.z - self.shift(lens);
         let (scale, offset) = self.plane;
-        Some((q - offset) / scale).filter(|r| finite(r.x) && finite(r.y))
+        Some((q - offset) / scale).filter(|r| is_finite(r.x) && is_finite(r.y))
     }
 
     /// The pixels whose filter support contains raster position `raster`.
     pub fn pixels_around(&self, raster: Vec2) -> impl Iterator<Item = [u32; 2]> {
         let r = self.filter.radius;
         // A non-finite position covers no pixel (max and min would drop NaN).
-        let raster = if finite(raster.x) && finite(raster.y) {
+        let raster = if is_finite(raster.x) && is_finite(raster.y) {
             raster
         } else {
             Vec2::splat(-1e9)

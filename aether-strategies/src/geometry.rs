@@ -114,11 +114,11 @@ pub fn rays_cast() -> u64 {
 }
 
 /// True if `x` is finite: `x − x` is zero exactly for finite `x`. Two
-/// float instructions, where `f32::is_finite` compiled to tests of the
-/// bits with branches.
+/// float instructions, where `x.is_finite()` followed by a comparison
+/// compiled to tests of the bits with branches.
 #[inline(always)]
 #[allow(clippy::eq_op)]
-pub(crate) fn finite(x: f32) -> bool {
+pub(crate) fn is_finite(x: f32) -> bool {
     x - x == 0.0
 }
 
@@ -128,7 +128,7 @@ pub(crate) fn finite(x: f32) -> bool {
 #[inline(always)]
 pub(crate) fn unit(v: Vec3) -> Option<Vec3> {
     let rcp = v.length_recip();
-    (finite(rcp) && rcp > 0.0).then(|| v * rcp)
+    (is_finite(rcp) && rcp > 0.0).then(|| v * rcp)
 }
 
 /// The origin of a ray leaving a surface point `p` (with error bound
@@ -405,7 +405,7 @@ impl Geometry {
         let ob = offset_origin(pb, eb, nb, pa - pb);
         let d = ob - oa;
         let dist = d.length();
-        if dist == 0.0 || !finite(dist) {
+        if dist == 0.0 || !is_finite(dist) {
             return true;
         }
         !self.occluded(oa, d / dist, dist * (1.0 - 1e-4))

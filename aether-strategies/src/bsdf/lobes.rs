@@ -154,7 +154,8 @@ impl Lobes {
         }
     }
 
-    /// Lobe `i`, built for the direction the path arrived along.
+    /// Lobe `i`, built for the direction the path arrived along (the
+    /// mixture asks for i < 2 only).
     #[inline(always)]
     fn lobe(&self, i: usize) -> Lobe {
         let given = self.given;
