@@ -188,10 +188,10 @@ fn one<'a>(s: &'a dyn DynStrategy<SceneVertex>) -> StrategyRef<'a, SceneVertex> 
     StrategyRef::One(s)
 }
 
-/// Samples `first`, then `next` until a step fails or the path has `max` vertices.
-/// Into `path`, in place (an out-parameter, against the house style, for
-/// speed: a path returned by value, about 3 KB, was copied by `memcpy`
-/// twice per sample, 1 % of BDPT's instructions).
+/// Samples `first`, then `next` into `path` until a step fails or it has
+/// `max` vertices. An out-parameter, against the house style, for speed: a
+/// path returned by value (about 3 KB) was copied by `memcpy` twice per
+/// sample, 1 % of BDPT's instructions.
 fn walk<'a>(
     path: &mut Path<'a>,
     first: [&'a dyn DynStrategy<SceneVertex>; 2],
@@ -254,20 +254,14 @@ impl Bdpt<'_> {
             return Vec3::ZERO;
         }
         let (kit, t) = (&kit, n - s);
-        let cam = match s {
-            0 => RandomSequence::new(),
+        let (mut cam, mut light) = (RandomSequence::new(), RandomSequence::new());
+        match s {
+            0 => {}
             1 => {
-                let mut c = RandomSequence::new();
-                c.append_sample(&kit.lens, rng);
-                c
+                cam.append_sample(&kit.lens, rng);
             }
-            _ => {
-                let mut c = RandomSequence::new();
-                walk(&mut c, [&kit.lens, &kit.look], &kit.scatter, s, rng);
-                c
-            }
-        };
-        let mut light = RandomSequence::new();
+            _ => walk(&mut cam, [&kit.lens, &kit.look], &kit.scatter, s, rng),
+        }
         if t >= 2 {
             walk(&mut light, [&kit.emit, &kit.leave], &kit.gather, t, rng);
         }
