@@ -405,41 +405,38 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
     /// densities of the vertices after the eye's and the light-side
     /// products in `store`, and the direct step's density of the last
     /// vertex.
-    fn weigh_one(
-        &self,
-        store: &mut Store,
-        s: usize,
-        direct: Option<Density>,
-    ) -> (f64, PathDensity) {
+    fn weigh_one(&self, store: &Store, s: usize, direct: Option<Density>) -> (f64, PathDensity) {
         let Store {
             eye_chain,
             camera,
             suffix,
-            densities,
             ..
         } = store;
         let n = suffix.len() - 1;
-        densities.clear();
-        let mut prefix = PathDensity::ONE;
-        for (k, &light) in suffix.iter().enumerate() {
-            prefix = match k {
+        // Technique k's density: the eye's first k vertices as they were
+        // sampled, the camera side's densities of the rest up to the light
+        // subpath's, then the light side's (the direct step's for a light
+        // sample).
+        let join = |k: usize, prefix: PathDensity| match direct {
+            Some(d) if k + 1 == n => prefix.times(d),
+            _ => prefix.times_path(suffix[k]),
+        };
+        // Each technique's samples, as Split::bidirectional counts them
+        // (one for all but the first two).
+        let counted = |k: usize, p: PathDensity| match samples_of(k, self.splats, self.through_lens)
+        {
+            samples if k < 2 && samples != 1.0 => p.times(Density::new(samples, Measure::Discrete)),
+            _ => p,
+        };
+        let own = join(s, eye_chain[s]);
+        // Derived in turn and weighed as they come, not stored.
+        let densities = (0..=n).scan(PathDensity::ONE, |prefix, k| {
+            *prefix = match k {
                 k if k <= s => eye_chain[k],
                 k => prefix.times(camera[k - 1 - s]),
             };
-            densities.push(match direct {
-                Some(d) if k + 1 == n => prefix.times(d),
-                _ => prefix.times_path(light),
-            });
-        }
-        let own = densities[s];
-        // Each technique's samples, as Split::bidirectional counts them
-        // (one for all but the first two).
-        for (k, p) in densities.iter_mut().enumerate().take(2) {
-            let samples = samples_of(k, self.splats, self.through_lens);
-            if samples != 1.0 {
-                *p = p.times(Density::new(samples, Measure::Discrete));
-            }
-        }
-        (self.heuristic.weight(densities, s), own)
+            Some(counted(k, join(k, *prefix)))
+        });
+        (self.heuristic.weight_among(counted(s, own), densities), own)
     }
 }

@@ -70,12 +70,10 @@ pub(crate) struct Store {
     pub(crate) light_kept: Vec<Kept>,
     /// For the join being weighed: camera-side densities of the vertices
     /// after the eye's, light-side ones of the eye's (and of a light
-    /// sample), the density of vertices k.. from the light, and each
-    /// technique's density.
+    /// sample), and the density of vertices k.. from the light.
     pub(crate) camera: Vec<Density>,
     pub(crate) light: Vec<Density>,
     pub(crate) suffix: Vec<PathDensity>,
-    pub(crate) densities: Vec<PathDensity>,
     /// Factors of the joins the densities above cannot weigh.
     pub(crate) cache: DensityCache,
 }
@@ -207,7 +205,6 @@ pub(crate) fn factor<V: Vertex>(
     let (s, n) = (view.s(), view.len());
     let len = if reversed { n - 1 - i } else { i };
     let m = strategy.memory().min(len);
-    let class = strategy.depth_class(len) as u32;
     // The strategy remembers vertices first..first + m: kept by vertex i
     // if they lie on its side of the join.
     let first = if reversed { i + 1 } else { i - m };
@@ -217,14 +214,17 @@ pub(crate) fn factor<V: Vertex>(
         Place::Light(k) if first >= s => light_kept.get_mut(k),
         _ => None,
     };
-    if let Some(d) = kept.as_ref().and_then(|k| k.get(tag, class)) {
+    // Asked only of a density that can be kept: about half of a join's are
+    // evaluated across it.
+    let class = kept.as_ref().map(|_| strategy.depth_class(len) as u32);
+    if let Some(d) = kept.as_ref().zip(class).and_then(|(k, c)| k.get(tag, c)) {
         return d;
     }
     count_evaluation();
     let mut copy = SmallVec::new();
     let prefix = view.nearest((i, m, reversed), len, &mut copy);
     let d = strategy.density_of(prefix, std::slice::from_ref(view.at(i)));
-    if let Some(k) = kept {
+    if let Some((k, class)) = kept.zip(class) {
         k.keep(tag, class, d);
     }
     d

@@ -186,21 +186,9 @@ pub fn weight_of_step(
     if own >= last.len() {
         return (0.0, PathDensity::ONE.times(Density::zero(Measure::Area)));
     }
-    // In an array where they fit: collected into a list, two densities
-    // cost as much again as the heuristic itself.
-    let mut inline = [PathDensity::ONE; 4];
-    let spilled: SmallVec<[PathDensity; 4]>;
-    let densities = match inline.get_mut(..last.len()) {
-        Some(d) => {
-            for (p, &l) in d.iter_mut().zip(last) {
-                *p = prefix.times(l);
-            }
-            &*d
-        }
-        None => {
-            spilled = last.iter().map(|&d| prefix.times(d)).collect();
-            &spilled[..]
-        }
-    };
-    (heuristic.weight(densities, own), densities[own])
+    // Weighed as they are multiplied out, not stored: collected into a
+    // list, two densities cost as much again as the heuristic itself.
+    let own_density = prefix.times(last[own]);
+    let densities = last.iter().map(|&d| prefix.times(d));
+    (heuristic.weight_among(own_density, densities), own_density)
 }

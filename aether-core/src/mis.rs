@@ -32,12 +32,22 @@ impl Heuristic {
     /// skipped. Computed as 1 / Σⱼ (pⱼ/pᵢ)^β, in f64.
     #[must_use]
     pub fn weight(self, densities: &[PathDensity], i: usize) -> f64 {
-        let own = densities[i];
+        self.weight_among(densities[i], densities.iter().copied())
+    }
+
+    /// As [`weight`](Self::weight), for the candidate whose own density is
+    /// `own`, given every candidate's density (its own among them) one at
+    /// a time: a caller that derives them in turn need not store them.
+    pub(crate) fn weight_among(
+        self,
+        own: PathDensity,
+        densities: impl IntoIterator<Item = PathDensity>,
+    ) -> f64 {
         if own.is_zero() {
             return 0.0;
         }
         let mut sum = 0.0;
-        for &p in densities {
+        for p in densities {
             let r = own.ratio_to(p);
             if r == f64::INFINITY {
                 return 0.0;
