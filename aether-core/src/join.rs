@@ -2,13 +2,11 @@
 //! side's first vertices, then a light sample or the light subpath's first
 //! vertices read backwards; what [`Joins`](crate::Joins) weighs.
 
-use smallvec::SmallVec;
-
 use crate::kept::View;
 use crate::last_step::Aside;
 use crate::recycle::Recycle;
 use crate::sequence::RandomSequence;
-use crate::strategy::StrategyRef;
+use crate::strategy::{Produced, StrategyRef};
 use crate::vertex::Vertex;
 
 /// A path joined from the first `n` vertices of a camera-side sequence
@@ -105,7 +103,9 @@ impl<'a, 's, V: Vertex> Join<'a, 's, V> {
     ) {
         match (self.lamp, direct) {
             (Some(l), Some(d)) => {
-                path.push_step(d, &mut SmallVec::from_elem(l.vertex.clone(), 1), l.density);
+                let mut out = Produced::new();
+                out.push(l.vertex.clone());
+                path.push_step(d, &mut out, l.density);
             }
             // A light sample with no direct step to have sampled it: given.
             (Some(l), None) => {

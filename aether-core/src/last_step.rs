@@ -9,7 +9,7 @@ use crate::density::{Density, Measure, PathDensity};
 use crate::mis::Heuristic;
 use crate::rng::UniformSource;
 use crate::sequence::{RandomSequence, Span};
-use crate::strategy::{DynStrategy, Prefix, StepKind, StrategyRef};
+use crate::strategy::{DynStrategy, Prefix, Produced, StepKind, StrategyRef};
 use crate::vertex::Vertex;
 
 /// A vertex sampled beside a path, after its last vertex, by a strategy
@@ -56,7 +56,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         rng: &mut dyn UniformSource,
     ) -> Option<Aside<V>> {
         let prefix = Prefix::forward(&self.vertices()[..len]);
-        let mut out = SmallVec::<[V; 2]>::new();
+        let mut out = Produced::<V>::new();
         let sampled = strategy.sample_step(prefix, rng, &mut out);
         let vertex = out.pop().filter(|_| sampled.kind == StepKind::Vertex)?;
         Some(Aside {

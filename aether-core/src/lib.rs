@@ -85,7 +85,8 @@ pub use shift::{replay_jacobian, weight_of_shift};
 pub use sometimes::Sometimes;
 pub use split::{Split, Splits, densities_of_split, weight_of_split, weights_of_split_variants};
 pub use strategy::{
-    DynPairStrategy, DynStrategy, PairStrategy, Prefix, Sampled, StepKind, Strategy, StrategyRef,
+    DynPairStrategy, DynStrategy, PairStrategy, Prefix, Produced, Sampled, StepKind, Strategy,
+    StrategyRef,
 };
 pub use surface::{AtInfinity, DiracPoint, Intersect, OnSurface, ParallelRays, Segment};
 pub use vertex::{Geometry, RayCaster, Vertex};

@@ -28,7 +28,7 @@ use smallvec::SmallVec;
 use crate::density::{Density, Measure, PathDensity};
 use crate::rng::UniformSource;
 use crate::sequence::{INLINE_VERTICES, fresh_id};
-use crate::strategy::{DynStrategy, Prefix, StepKind};
+use crate::strategy::{DynStrategy, Prefix, Produced, StepKind};
 use crate::vertex::Vertex;
 
 /// A path as the state of a Markov chain: its vertices, camera first, each
@@ -403,7 +403,7 @@ impl<'m, V: Vertex> Mutator<'m, V> {
         match &mut self.mode {
             Mode::Sample(rng) => {
                 let side = if light { &self.light } else { &self.eye };
-                let mut out = SmallVec::<[V; 2]>::new();
+                let mut out = Produced::<V>::new();
                 let sampled =
                     strategy.sample_step(Prefix::forward(&side.vertices), &mut **rng, &mut out);
                 let (kind, density) = (sampled.kind, sampled.density);

@@ -11,7 +11,7 @@ use crate::density::{Density, Measure, PathDensity};
 use crate::mis::FactorCache;
 use crate::recycle::{Pooled, Recycle};
 use crate::rng::UniformSource;
-use crate::strategy::{DynPairStrategy, DynStrategy, Prefix, StepKind, StrategyRef};
+use crate::strategy::{DynPairStrategy, DynStrategy, Prefix, Produced, StepKind, StrategyRef};
 use crate::vertex::Vertex;
 
 /// Inline capacity of a sequence: paths up to this many vertices allocate nothing.
@@ -571,7 +571,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
         rng: &mut dyn UniformSource,
         measure: Option<&V>,
     ) -> (StepKind, Density) {
-        let mut out = SmallVec::<[V; 2]>::new();
+        let mut out = Produced::<V>::new();
         let prefix = Prefix::forward(&self.vertices);
         let (sampled, measured) = match (measure, strategy) {
             (Some(other), StrategyRef::One(s)) => {
@@ -609,7 +609,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     pub(crate) fn push_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
-        out: &mut SmallVec<[V; 2]>,
+        out: &mut Produced<V>,
         density: Density,
     ) {
         let start = self.vertices.len();
@@ -622,7 +622,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
     fn push_known_step(
         &mut self,
         strategy: StrategyRef<'s, V>,
-        out: &mut SmallVec<[V; 2]>,
+        out: &mut Produced<V>,
         density: Density,
         (memory, class): (usize, usize),
     ) {
@@ -649,7 +649,7 @@ impl<'s, V: Vertex> RandomSequence<'s, V> {
             }
             self.slots.push(slot(0, recorded, chain));
         } else {
-            self.vertices.extend(out.drain(..));
+            self.vertices.extend(out.drain());
             self.slots.push(slot(0, recorded, None));
             self.slots.push(slot(1, None, None));
         }
