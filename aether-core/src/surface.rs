@@ -54,23 +54,9 @@ impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a
     /// The origin of the ray that reaches `v`, as the caster starts it
     /// (past `from`'s rounding error), so that densities describe the rays
     /// cast: on edges a few offsets long, and through near-specular lobes,
-    /// the difference matters. The caster's origin may depend on the ray's
-    /// direction (the side of the surface it leaves by); the origin is the
-    /// one consistent with the direction from it to `v`. None if no ray
-    /// from an origin the caster uses reaches `v` that way (a target in the
-    /// tangent plane, between the offsets).
+    /// the difference matters ([`RayCaster::origin_reaching`]).
     fn origin_toward(&self, v: &V) -> Option<Vec3> {
-        let p = self.from.position();
-        let toward = |o: Vec3| match v.geometry() {
-            Geometry::AtInfinity { direction } => direction,
-            _ => v.position() - o,
-        };
-        let first = self.scene.origin(self.from, toward(p));
-        let second = self.scene.origin(self.from, toward(first));
-        if second == first {
-            return Some(first);
-        }
-        (self.scene.origin(self.from, toward(second)) == second).then_some(second)
+        self.scene.origin_reaching(self.from, v)
     }
 }
 

@@ -65,6 +65,31 @@ pub trait RayCaster<V> {
     {
         (self.origin(from, direction), self.cast(from, direction))
     }
+
+    /// The [`origin`](Self::origin) of the ray from `from` that reaches
+    /// `target`: the origin may depend on the ray's direction (the side of
+    /// the surface it leaves by), and this is the one consistent with the
+    /// direction from it to `target`. `None` if no origin the caster uses
+    /// reaches `target` that way (a target in the tangent plane, between
+    /// the offsets). Densities of edges are measured from it. The default
+    /// looks for the fixed point of at most three origins; a caster that
+    /// knows how its origin depends on the direction may find the same
+    /// point with less arithmetic.
+    fn origin_reaching(&self, from: &V, target: &V) -> Option<Vec3>
+    where
+        V: Vertex,
+    {
+        let toward = |o: Vec3| match target.geometry() {
+            Geometry::AtInfinity { direction } => direction,
+            _ => target.position() - o,
+        };
+        let first = self.origin(from, toward(from.position()));
+        let second = self.origin(from, toward(first));
+        if second == first {
+            return Some(first);
+        }
+        (self.origin(from, toward(second)) == second).then_some(second)
+    }
 }
 
 impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
@@ -82,5 +107,11 @@ impl<V, R: RayCaster<V> + ?Sized> RayCaster<V> for &R {
         V: Vertex,
     {
         (**self).cast_from(from, direction)
+    }
+    fn origin_reaching(&self, from: &V, target: &V) -> Option<Vec3>
+    where
+        V: Vertex,
+    {
+        (**self).origin_reaching(from, target)
     }
 }

@@ -253,6 +253,40 @@ impl RayCaster<SceneVertex> for Scene {
         let origin = self.origin(from, direction);
         (origin, self.cast_at(origin, from, direction))
     }
+
+    /// The default's fixed point, found from the side of the surface each
+    /// candidate origin sees the target on: [`offset_origin`] reads the
+    /// direction only through that side, so an origin on the side it was
+    /// offset to is the fixed point, without computing it again and
+    /// comparing (every density of BSDF sampling asks this). The same
+    /// vectors, the same `None`s (a test compares the two).
+    fn origin_reaching(&self, from: &SceneVertex, target: &SceneVertex) -> Option<Vec3> {
+        let Site::Surface { .. } = from.site else {
+            let p = from.position;
+            return (!p.is_nan()).then_some(p);
+        };
+        let (p, n, error) = (from.position, from.geometric_normal, from.error);
+        let toward = |o: Vec3| match target.site {
+            Site::Environment { direction } | Site::Distant { direction, .. } => direction,
+            _ => target.position - o,
+        };
+        let below = |dir: Vec3| n.dot(dir) < 0.0;
+        let to_first = toward(p);
+        let first = offset_origin(p, error, n, to_first);
+        let to_second = toward(first);
+        // The target on the side the origin was offset to: the second
+        // origin would be the first again, bit for bit.
+        if below(to_second) == below(to_first) {
+            return (!first.is_nan()).then_some(first);
+        }
+        let second = offset_origin(p, error, n, to_second);
+        if second == first {
+            return Some(first);
+        }
+        // A third origin is the second if it sees the target on the same
+        // side, else the first, which differs from the second.
+        (below(toward(second)) == below(to_second) && !second.is_nan()).then_some(second)
+    }
 }
 
 /// The aperture of a thin-lens camera: a disk facing along the view.

@@ -174,3 +174,74 @@ fn lamp_triangle(v: &SceneVertex) -> u32 {
         _ => u32::MAX,
     }
 }
+
+/// The scene's ray casting without its own `origin_reaching`: the
+/// language's default, which the scene's shortcut must agree with.
+struct Plain<'s>(&'s Scene);
+
+impl RayCaster<SceneVertex> for Plain<'_> {
+    fn cast(&self, from: &SceneVertex, direction: Vec3) -> Option<SceneVertex> {
+        self.0.cast(from, direction)
+    }
+    fn origin(&self, from: &SceneVertex, toward: Vec3) -> Vec3 {
+        self.0.origin(from, toward)
+    }
+}
+
+#[test]
+fn the_scenes_origin_toward_a_target_is_the_default_fixed_point() {
+    let scene = room("");
+    let bits = |o: Option<Vec3>| o.map(|v| v.to_array().map(f32::to_bits));
+    let mut rng = aether_core::Pcg32::new(11, 0);
+    let mut u = || aether_core::UniformSource::next_f32(&mut rng);
+    let mut seen = [0usize; 3];
+    for _ in 0..4000 {
+        let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize();
+        let Some(hit) = scene.geometry.intersect(Vec3::ZERO, d, f32::INFINITY) else {
+            continue;
+        };
+        let from = SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive));
+        let n = from.geometric_normal;
+        // Targets anywhere, and in or a hair off the tangent plane, where
+        // the offset origins see them on different sides.
+        let tangent = n.cross(Vec3::new(0.3, 0.5, 0.7)).normalize();
+        let grazing = |along: f32, k: f32| {
+            let mut v = from;
+            v.position = from.position + tangent * along + n * k * 1e-7;
+            v
+        };
+        let elsewhere = scene.cast(
+            &from,
+            Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize(),
+        );
+        let (a, b, c, k) = (u(), u(), u(), 30.0 * (u() - 0.5));
+        let targets = [
+            elsewhere,
+            Some(grazing(a, 0.0)),
+            Some(grazing(b, 1.0)),
+            Some(grazing(c, -1.0)),
+            Some(grazing(a, k)),
+            Some(SceneVertex::environment(-d)),
+            Some(SceneVertex::point(Vec3::ZERO, None)),
+        ];
+        let mut zero_error = from;
+        zero_error.error = Vec3::ZERO;
+        let mut nan_error = from;
+        nan_error.error = Vec3::NAN;
+        let nan = SceneVertex::point(Vec3::NAN, None);
+        for target in targets.iter().flatten() {
+            for source in [&from, &zero_error, &nan_error, &nan] {
+                let ours = scene.origin_reaching(source, target);
+                let default = Plain(&scene).origin_reaching(source, target);
+                assert_eq!(bits(ours), bits(default), "{source:?} toward {target:?}");
+                seen[match ours {
+                    None => 0,
+                    Some(o) if o == source.position => 1,
+                    Some(_) => 2,
+                }] += 1;
+            }
+        }
+    }
+    // Every outcome occurs: no origin, the point itself, an offset one.
+    assert!(seen.iter().all(|&k| k > 0), "{seen:?}");
+}
