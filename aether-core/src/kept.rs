@@ -193,7 +193,10 @@ impl<'a, V: Clone> View<'a, V> {
 /// `tag` of its list), forward or `reversed`: kept by the vertex if it and
 /// the vertices the strategy remembers are of one subpath, and evaluated
 /// from the nearest vertices otherwise. A varying camera entry (tagged
-/// with no entry index) is never kept.
+/// with no entry index) is never kept. The lookup inlines into the
+/// join's loops; an evaluation is called (a call with its registers saved
+/// cost every kept density about 40 instructions).
+#[inline(always)]
 pub(crate) fn factor<V: Vertex>(
     (eye_kept, light_kept): &mut (&mut [Kept], &mut [Kept]),
     view: &View<'_, V>,
@@ -214,18 +217,36 @@ pub(crate) fn factor<V: Vertex>(
         Place::Light(k) if first >= s => light_kept.get_mut(k),
         _ => None,
     };
-    // Asked only of a density that can be kept: about half of a join's are
-    // evaluated across it.
-    let class = kept.as_ref().map(|_| strategy.depth_class(len) as u32);
-    if let Some(d) = kept.as_ref().zip(class).and_then(|(k, c)| k.get(tag, c)) {
-        return d;
+    // The depth class is asked only of a density that can be kept: about
+    // half of a join's are evaluated across it.
+    match kept {
+        Some(k) => {
+            let class = strategy.depth_class(len) as u32;
+            match k.get(tag, class) {
+                Some(d) => d,
+                None => {
+                    let d = evaluate(view, (i, m, reversed), len, strategy);
+                    k.keep(tag, class, d);
+                    d
+                }
+            }
+        }
+        None => evaluate(view, (i, m, reversed), len, strategy),
     }
+}
+
+/// The density of vertex `i` of `view` under `strategy`, which remembers
+/// the `m` vertices nearest it (before it, or after it if `reversed`), of
+/// a prefix of `len`.
+#[inline(never)]
+fn evaluate<V: Vertex>(
+    view: &View<'_, V>,
+    (i, m, reversed): (usize, usize, bool),
+    len: usize,
+    strategy: StrategyRef<'_, V>,
+) -> Density {
     count_evaluation();
     let mut copy = SmallVec::new();
     let prefix = view.nearest((i, m, reversed), len, &mut copy);
-    let d = strategy.density_of(prefix, std::slice::from_ref(view.at(i)));
-    if let Some((k, class)) = kept.zip(class) {
-        k.keep(tag, class, d);
-    }
-    d
+    strategy.density_of(prefix, std::slice::from_ref(view.at(i)))
 }
