@@ -184,7 +184,11 @@ impl<'a, V: Clone> View<'a, V> {
         // Across the join: copied in path order, which is nearest first
         // for a reversed step.
         copy.clear();
-        copy.extend(range.map(|j| self.at(j).clone()));
+        // Pushed one by one: collected through an iterator, each vertex
+        // went through the stack on its way.
+        for j in range {
+            copy.push(self.at(j).clone());
+        }
         Prefix::nearest(copy, reversed, len)
     }
 }
