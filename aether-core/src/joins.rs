@@ -423,10 +423,16 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         };
         // Each technique's samples, as Split::bidirectional counts them
         // (one for all but the first two).
-        let counted = |k: usize, p: PathDensity| match samples_of(k, self.splats, self.through_lens)
-        {
-            samples if k < 2 && samples != 1.0 => p.times(Density::new(samples, Measure::Discrete)),
-            _ => p,
+        let counted = |k: usize, p: PathDensity| {
+            let samples = match k {
+                0 | 1 => samples_of(k, self.splats, self.through_lens),
+                _ => return p,
+            };
+            if samples == 1.0 {
+                p
+            } else {
+                p.times(Density::new(samples, Measure::Discrete))
+            }
         };
         let own = join(s, eye_chain[s]);
         // Derived in turn and weighed as they come, not stored.

@@ -38,6 +38,7 @@ impl Heuristic {
     /// As [`weight`](Self::weight), for the candidate whose own density is
     /// `own`, given every candidate's density (its own among them) one at
     /// a time: a caller that derives them in turn need not store them.
+    #[must_use]
     pub(crate) fn weight_among(
         self,
         own: PathDensity,

@@ -220,8 +220,8 @@ pub struct Sampled {
 
 /// The vertices one step produced, in sampling order: one, or two for a
 /// pair strategy. Two plain slots, not an inline list: a list asks where
-/// its items live (inline or on the heap) at every push and pop, which
-/// took 1.6 % of a path tracer's instructions.
+/// its items live (inline or on the heap) at every push and pop (path
+/// tracing ran 1.2 % fewer instructions without those questions).
 #[derive(Debug)]
 pub struct Produced<V> {
     first: Option<V>,
@@ -244,7 +244,8 @@ impl<V> Produced<V> {
         Self::default()
     }
 
-    /// Adds the next vertex (at most two).
+    /// Adds the next vertex. A step produces at most two: a third push
+    /// replaces the second (debug builds panic).
     #[inline(always)]
     pub fn push(&mut self, v: V) {
         debug_assert!(

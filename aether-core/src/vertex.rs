@@ -71,7 +71,8 @@ pub trait RayCaster<V> {
     /// the surface it leaves by), and this is the one consistent with the
     /// direction from it to `target`. `None` if no origin the caster uses
     /// reaches `target` that way (a target in the tangent plane, between
-    /// the offsets). Densities of edges are measured from it. The default
+    /// the offsets) or the origin is not a number (a NaN position or
+    /// error bound). Densities of edges are measured from it. The default
     /// looks for the fixed point of at most three origins; a caster that
     /// knows how its origin depends on the direction may find the same
     /// point with less arithmetic.

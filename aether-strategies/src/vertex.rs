@@ -279,12 +279,11 @@ impl RayCaster<SceneVertex> for Scene {
         if below(to_second) == below(to_first) {
             return (!first.is_nan()).then_some(first);
         }
+        // The sides differ, so the offset moved the origin: the second
+        // origin differs from the first (the default's test that they are
+        // equal cannot pass here). A third is the second if it sees the
+        // target on the same side, else the first again: no fixed point.
         let second = offset_origin(p, error, n, to_second);
-        if second == first {
-            return Some(first);
-        }
-        // A third origin is the second if it sees the target on the same
-        // side, else the first, which differs from the second.
         (below(toward(second)) == below(to_second) && !second.is_nan()).then_some(second)
     }
 }
