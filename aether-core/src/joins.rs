@@ -353,38 +353,44 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         let kept = &mut (&mut eye_kept[..], &mut light_kept[..]);
         // Camera-side densities of the vertices after the eye's, and
         // light-side ones of the eye's (and of a light sample's).
+        // Filled by extending, not pushing: one reservation per list, not a
+        // check of its capacity per vertex.
         camera.clear();
-        for i in s..n {
+        camera.extend((s..n).map(|i| {
             let varies = variants.is_some_and(|(at, _)| at == i);
-            camera.push(match entry(&self.camera, i) {
+            match entry(&self.camera, i) {
                 Some((k, strategy)) if !varies => {
                     factor(kept, view, i, strategy, CAMERA | k, false)
                 }
                 // A varying entry is evaluated per variant below.
                 _ => Density::ZERO,
-            });
-        }
-        light.clear();
-        light.resize(n, Density::ZERO);
-        let light_side = if t == 1 { 0..n } else { 0..s };
-        for i in light_side {
-            if let Some((k, strategy)) = entry(&self.emitter, n - 1 - i) {
-                light[i] = factor(kept, view, i, strategy, LIGHT | k, true);
             }
-        }
+        }));
+        // Read up to the light subpath's vertices (all of a join ending on
+        // a light sample).
+        let light_side = if t == 1 { n } else { s };
+        light.clear();
+        light.extend(
+            (0..light_side).map(|i| match entry(&self.emitter, n - 1 - i) {
+                Some((k, strategy)) => factor(kept, view, i, strategy, LIGHT | k, true),
+                None => Density::ZERO,
+            }),
+        );
         // The direct step's density of the last vertex: recorded for a
         // light sample, else kept or evaluated.
         let direct = self.direct.map(|d| match (t, lamp) {
             (1, Some(density)) => density,
             _ => factor(kept, view, n - 1, d, DIRECT, false),
         });
+        // The light subpath's own vertices carry their product; the eye's
+        // multiply theirs in, last first.
         suffix.clear();
         suffix.resize(n + 1, PathDensity::ONE);
-        for k in (0..n).rev() {
-            suffix[k] = match t {
-                2.. if k >= s => light_chain[n - k],
-                _ => suffix[k + 1].times(light[k]),
-            };
+        for k in light_side..n {
+            suffix[k] = light_chain[n - k];
+        }
+        for k in (0..light_side).rev() {
+            suffix[k] = suffix[k + 1].times(light[k]);
         }
         let mut weights = SmallVec::new();
         let Some((at, variants)) = variants else {
