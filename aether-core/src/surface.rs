@@ -50,14 +50,6 @@ impl<'a, V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Intersect<'a
             scene,
         }
     }
-
-    /// The origin of the ray that reaches `v`, as the caster starts it
-    /// (past `from`'s rounding error), so that densities describe the rays
-    /// cast: on edges a few offsets long, and through near-specular lobes,
-    /// the difference matters ([`RayCaster::origin_reaching`]).
-    fn origin_toward(&self, v: &V) -> Option<Vec3> {
-        self.scene.origin_reaching(self.from, v)
-    }
 }
 
 /// Converts a solid-angle density at `from` into the measure of vertex `v`.
@@ -110,14 +102,22 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, R: RayCaster<V>> Distribution
         let Step::Vertex(v) = v else {
             return Density::zero(Measure::Area);
         };
-        match self.origin_toward(v).and_then(|o| direction_to(o, v)) {
+        // Measured from the origin the caster starts the ray that reaches
+        // `v` from (past `from`'s rounding error), so that densities
+        // describe the rays cast: on edges a few offsets long, and through
+        // near-specular lobes, the difference matters.
+        match self
+            .scene
+            .origin_reaching(self.from, v)
+            .and_then(|o| direction_to(o, v))
+        {
             Some((dir, factor)) => self.directions.density(&dir).convert(factor, measure_of(v)),
             None => Density::zero(Measure::Area),
         }
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
         let Step::Vertex(v) = v else { return None };
-        let (dir, _) = direction_to(self.origin_toward(v)?, v)?;
+        let (dir, _) = direction_to(self.scene.origin_reaching(self.from, v)?, v)?;
         self.directions.invert(&dir)
     }
     fn has_overlapping_branches(&self) -> bool {
