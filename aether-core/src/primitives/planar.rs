@@ -35,12 +35,17 @@ impl UniformDisk {
         if a == 0.0 && b == 0.0 {
             return Vec2::ZERO;
         }
-        let (r, phi) = if a.abs() > b.abs() {
-            (a, FRAC_PI_4 * (b / a))
+        // φ = x in the wedges about ±x, π/2 − x in those about ±y, with
+        // |x| ≤ π/4: one polynomial pair, its two results swapped for the
+        // second case, where libm's `sincosf` reduced an argument that
+        // never needs reducing (1.6 % of a path tracer's time).
+        if a.abs() > b.abs() {
+            let (sin, cos) = sin_cos_quarter(FRAC_PI_4 * (b / a));
+            a * Vec2::new(cos, sin)
         } else {
-            (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b))
-        };
-        r * Vec2::new(phi.cos(), phi.sin())
+            let (sin, cos) = sin_cos_quarter(FRAC_PI_4 * (a / b));
+            b * Vec2::new(sin, cos)
+        }
     }
 
     /// The inverse of [`concentric`](Self::concentric) on the closed unit disk.
@@ -98,6 +103,16 @@ impl Distribution for UniformDisk {
     fn invert(&self, p: &Vec2) -> Option<Uniforms> {
         Self::concentric_inverse(*p / self.radius).map(|u| smallvec![u[0], u[1]])
     }
+}
+
+/// sin x and cos x for |x| ≤ π/4, within two units in the last place:
+/// the minimax polynomials of Moshier's Cephes library (`sinf`, `cosf`)
+/// for that range, where they need no argument reduction.
+fn sin_cos_quarter(x: f32) -> (f32, f32) {
+    let z = x * x;
+    let sin = x + x * z * (-1.666_665_5e-1 + z * (8.332_161e-3 + z * -1.951_529_6e-4));
+    let cos = 1.0 - 0.5 * z + z * z * (4.166_664_6e-2 + z * (-1.388_731_6e-3 + z * 2.443_315_7e-5));
+    (sin, cos)
 }
 
 /// The uniform distribution on a triangle, by area.
@@ -202,6 +217,24 @@ impl Distribution for UniformTriangle {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quarter_sine_and_cosine_agree_with_the_standard_ones() {
+        for i in -1000..=1000 {
+            let x = FRAC_PI_4 * i as f32 / 1000.0;
+            let (sin, cos) = sin_cos_quarter(x);
+            let exact = f64::from(x);
+            let ulp = |v: f32| f64::from(v.abs().max(f32::MIN_POSITIVE)) * f64::from(f32::EPSILON);
+            assert!(
+                (f64::from(sin) - exact.sin()).abs() <= 2.0 * ulp(sin),
+                "sin {x}: {sin}"
+            );
+            assert!(
+                (f64::from(cos) - exact.cos()).abs() <= 2.0 * ulp(cos),
+                "cos {x}: {cos}"
+            );
+        }
+    }
 
     #[test]
     fn concentric_round_trip() {
