@@ -20,7 +20,8 @@
 //!   [`RussianRoulette`] (termination as an event with probability),
 //!   [`Sometimes`] (a strategy taken for a share of the samples),
 //!   [`Either`], [`Intersect`] (solid angle → area at the hit point),
-//!   [`OnSurface`], [`DiracPoint`], [`AtInfinity`] (environment and
+//!   [`OnSurface`], [`OnTriangle`] (with the sampled barycentrics),
+//!   [`DiracPoint`], [`AtInfinity`] (environment and
 //!   directional emitters), [`ParallelRays`] (the far disk of a distant
 //!   light: disk area → area at the hit point) and [`Segment`] (two
 //!   vertices through a portal).
@@ -54,6 +55,7 @@ mod kept;
 mod last_step;
 mod mis;
 mod mutation;
+mod on_triangle;
 mod primary;
 pub mod primitives;
 mod recycle;
@@ -77,6 +79,7 @@ pub use joins::Joins;
 pub use last_step::{Aside, weight_of_last_step, weight_of_step};
 pub use mis::{DensityCache, Heuristic, Weights, combine};
 pub use mutation::{ChainPath, Mutation, Mutator, acceptance, propose, transition_density};
+pub use on_triangle::OnTriangle;
 pub use primary::{PrimarySamples, Replay};
 pub use recycle::{Pooled, Recycle};
 pub use rng::{Pcg32, UniformSource};

@@ -1,16 +1,20 @@
 //! The harness on composed strategies: a cosine bounce onto a plane, direct
 //! sampling of a sphere light by its cone, a GGX reflection onto a plane,
-//! light sampling by area over two triangles, a bounce with Russian
+//! light sampling by area over two triangles (by points, and by points
+//! with their barycentrics), a bounce with Russian
 //! roulette, whose termination is an event of probability 1 − q, and a
 //! strategy taken for a share of the samples ([`Sometimes`]).
 
 use aether_core::harness::{Check, Grid, check_strategy};
-use aether_core::primitives::{CosineHemisphere, GgxVisibleNormals, Reflect, UniformCone};
+use aether_core::primitives::{
+    CosineHemisphere, DiscreteDistribution, GgxVisibleNormals, Reflect, UniformCone,
+};
 use aether_core::testing::{
     Bounce, LightSample, RectChart, SphereChart, TestScene, TestVertex, facing_normal,
 };
 use aether_core::{
-    Distribution, Frame, InFrame, Intersect, Prefix, RussianRoulette, Sometimes, Step, Strategy,
+    Distribution, Frame, InFrame, Intersect, OnTriangle, Prefix, RussianRoulette, Select,
+    Sometimes, Step, Strategy,
 };
 use glam::Vec3;
 
@@ -154,6 +158,51 @@ fn light_sampling_by_area_over_triangles() {
         &Grid::new(RectChart::new(&scene, scene.light), 16),
     );
     assert!((r.integral - 1.0).abs() < 1e-6, "{r}");
+}
+
+/// [`LightSample`] with its points built from their barycentrics, which
+/// must give back the sampled point; its two triangles are equal.
+struct BarycentricLight<'s>(&'s TestScene, DiscreteDistribution);
+
+impl Strategy<TestVertex> for BarycentricLight<'_> {
+    fn distribution<'a>(
+        &'a self,
+        _prefix: Prefix<'a, TestVertex>,
+    ) -> impl Distribution<Value = Step<TestVertex>> + 'a {
+        let scene = self.0;
+        let on_light = move |i: usize| {
+            let triangle = scene.light_triangle(i);
+            OnTriangle::new(triangle, move |p, b| {
+                let [p0, p1, p2] = triangle.corners();
+                let q = b[0] * p0 + b[1] * p1 + b[2] * p2;
+                assert!((q - p).length() < 1e-5, "{b:?} give {q}, not {p}");
+                Some(scene.vertex_on(scene.light, q))
+            })
+        };
+        let which = move |v: &Step<TestVertex>| match v {
+            Step::Vertex(v) if v.shape as usize == scene.light => {
+                (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
+            }
+            _ => None,
+        };
+        Select::new(&self.1, 2, on_light, which)
+    }
+    fn memory(&self) -> usize {
+        0
+    }
+}
+
+#[test]
+fn light_sampling_by_barycentrics_over_triangles() {
+    let scene = TestScene::open_box();
+    let halves = DiscreteDistribution::new(&[1.0, 1.0]).expect("two weights");
+    let r = passes(
+        &BarycentricLight(&scene, halves),
+        &[floor_point(&scene)],
+        &Grid::new(RectChart::new(&scene, scene.light), 16),
+    );
+    assert!((r.integral - 1.0).abs() < 1e-6, "{r}");
+    assert!(r.jacobian_checked > 100, "{r}");
 }
 
 #[test]

@@ -425,23 +425,22 @@ impl Geometry {
     /// `position` (a point sampled on it), with its normals, uv and error.
     #[must_use]
     pub fn point_on_triangle(&self, mesh: u32, triangle: u32, position: Vec3) -> Hit {
-        let corners = self.meshes[mesh as usize].corners(triangle as usize);
-        self.point_on_plane(mesh, triangle, &TrianglePlane::new(corners), position)
+        let plane = TrianglePlane::new(self.meshes[mesh as usize].corners(triangle as usize));
+        self.point_on_plane(mesh, triangle, &plane, plane.barycentrics(position))
     }
 
-    /// As [`point_on_triangle`](Self::point_on_triangle), with the
-    /// triangle's plane solved beforehand (a light's triangles, sampled at
-    /// every vertex of every path).
+    /// As [`point_on_triangle`](Self::point_on_triangle), for the point
+    /// of barycentrics `b` (sampled with them: a light's triangles, at
+    /// every vertex of every path), the triangle's plane found beforehand.
     #[must_use]
     pub fn point_on_plane(
         &self,
         mesh: u32,
         triangle: u32,
         plane: &TrianglePlane,
-        position: Vec3,
+        b: [f32; 3],
     ) -> Hit {
-        let shape = (plane.corners(), plane.normal());
-        self.on_triangle(mesh, triangle, shape, 0.0, plane.barycentrics(position))
+        self.on_triangle(mesh, triangle, (plane.corners(), plane.normal()), 0.0, b)
     }
 
     /// The surface point of sphere `sphere` in `direction` from its centre.

@@ -7,7 +7,7 @@ use aether_core::primitives::{
     SpherePoint, UniformCone, UniformDisk, UniformSphere, UniformTriangle,
 };
 use aether_core::{
-    AtInfinity, DiracPoint, Distribution, Either, Frame, InFrame, Intersect, OnSurface,
+    AtInfinity, DiracPoint, Distribution, Either, Frame, InFrame, Intersect, OnSurface, OnTriangle,
     ParallelRays, Prefix, RayCaster, Select, Step, Strategy,
 };
 use glam::Vec3;
@@ -54,9 +54,9 @@ impl MeshLight {
         (light, areas.iter().sum())
     }
 
-    /// The light vertex at `position`, sampled on triangle `t`.
-    fn vertex(&self, scene: &Scene, t: usize, position: Vec3) -> SceneVertex {
-        SceneVertex::on_plane(scene, self.mesh, t as u32, &self.planes[t], position)
+    /// The light vertex of barycentrics `b`, sampled on triangle `t`.
+    fn vertex(&self, scene: &Scene, t: usize, b: [f32; 3]) -> SceneVertex {
+        SceneVertex::on_plane(scene, self.mesh, t as u32, &self.planes[t], b)
     }
 }
 
@@ -315,8 +315,8 @@ impl<'s> Lights<'s> {
                 // The triangle is chosen by area and named by the vertex's site.
                 let m = light.mesh;
                 let on = move |t: usize| {
-                    let at = move |p| Some(light.vertex(scene, t, p));
-                    OnSurface::new(light.pieces[t], at)
+                    let at = move |_, b| Some(light.vertex(scene, t, b));
+                    OnTriangle::new(light.pieces[t], at)
                 };
                 let area = Select::new(&light.triangles, 2, on, move |v| triangle_of(v, m));
                 Either::Left(Either::Left(area))

@@ -125,19 +125,17 @@ impl SceneVertex {
         SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
     }
 
-    /// As [`on_triangle`](Self::on_triangle), with the triangle's plane
-    /// solved beforehand.
+    /// As [`on_triangle`](Self::on_triangle), for the point of barycentrics
+    /// `b` (as it was sampled), the triangle's plane found beforehand.
     #[must_use]
     pub fn on_plane(
         scene: &Scene,
         mesh: u32,
         triangle: u32,
         plane: &TrianglePlane,
-        position: Vec3,
+        b: [f32; 3],
     ) -> Self {
-        let hit = scene
-            .geometry
-            .point_on_plane(mesh, triangle, plane, position);
+        let hit = scene.geometry.point_on_plane(mesh, triangle, plane, b);
         SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
     }
 

@@ -142,6 +142,12 @@ impl UniformTriangle {
         }
     }
 
+    /// Its corners, in the order given to [`new`](Self::new).
+    #[must_use]
+    pub fn corners(&self) -> [Vec3; 3] {
+        self.p
+    }
+
     /// Its area.
     #[must_use]
     pub fn area(&self) -> f64 {
@@ -172,6 +178,21 @@ impl UniformTriangle {
         (b0 >= tol && beta >= tol && gamma >= tol).then_some((b0, beta))
     }
 
+    /// The point the uniforms `u` map to, as [`sample`](Distribution::sample)
+    /// gives it, with its barycentrics (b₀, b₁, b₂): the weights of the
+    /// corners in the order given to [`new`](Self::new), for whoever
+    /// interpolates the triangle's attributes there.
+    #[must_use]
+    pub fn sample_point(&self, u: &[f32]) -> Sample<(Vec3, [f64; 3])> {
+        let su = f64::from(u[0]).sqrt();
+        let b0 = 1.0 - su;
+        let b1 = f64::from(u[1]) * su;
+        let b2 = 1.0 - b0 - b1;
+        let [p0, p1, p2] = self.p.map(|p| p.as_dvec3());
+        let x = b0 * p0 + b1 * p1 + b2 * p2;
+        Sample::new((x.as_vec3(), [b0, b1, b2]), self.pdf())
+    }
+
     fn pdf(&self) -> Density {
         Density::new(self.inverse_area, Measure::Area)
     }
@@ -190,12 +211,8 @@ impl Distribution for UniformTriangle {
         2
     }
     fn sample(&self, u: &[f32]) -> Option<Sample<Vec3>> {
-        let su = f64::from(u[0]).sqrt();
-        let b0 = 1.0 - su;
-        let b1 = f64::from(u[1]) * su;
-        let [p0, p1, p2] = self.p.map(|p| p.as_dvec3());
-        let x = b0 * p0 + b1 * p1 + (1.0 - b0 - b1) * p2;
-        Some(Sample::new(x.as_vec3(), self.pdf()))
+        let s = self.sample_point(u);
+        Some(Sample::new(s.value.0, s.density))
     }
     fn density(&self, x: &Vec3) -> Density {
         match self.barycentrics(*x) {
