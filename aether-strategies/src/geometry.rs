@@ -158,6 +158,10 @@ pub struct Geometry {
     /// True if the spheres are few enough to be tested one by one beside
     /// the tree rather than in it.
     spheres_listed: bool,
+    /// Per sphere, whether its hits need texture coordinates (an angle
+    /// and an arc cosine in double precision per hit: 2 % of a path
+    /// tracer's time on SmallVCM's box, whose spheres are untextured).
+    sphere_uvs: Vec<bool>,
 }
 
 /// The mesh index of a sphere in [`Geometry`]'s BVH order.
@@ -213,6 +217,7 @@ impl Geometry {
             origins.push(origin);
         }
         Geometry {
+            sphere_uvs: vec![true; spheres.len()],
             meshes,
             spheres,
             triangles,
@@ -220,6 +225,15 @@ impl Geometry {
             origins,
             bvh,
             spheres_listed,
+        }
+    }
+
+    /// Says which spheres' hits need texture coordinates (`used(i)` for
+    /// sphere `i`): the others' hits carry (0, 0), which nothing reads. All
+    /// do until this is called.
+    pub fn set_sphere_uvs_used(&mut self, used: impl Fn(usize) -> bool) {
+        for (i, u) in self.sphere_uvs.iter_mut().enumerate() {
+            *u = used(i);
         }
     }
 
@@ -492,11 +506,15 @@ impl Geometry {
         let position = (s.center.as_dvec3() + f64::from(s.radius) * raw).as_vec3();
         let error = gamma(5.0) * position.abs();
         let n = raw.as_vec3();
-        let phi = raw.y.atan2(raw.x).rem_euclid(std::f64::consts::TAU);
-        let uv = Vec2::new(
-            (phi / std::f64::consts::TAU) as f32,
-            (raw.z.clamp(-1.0, 1.0).acos() / std::f64::consts::PI) as f32,
-        );
+        let uv = if self.sphere_uvs[i] {
+            let phi = raw.y.atan2(raw.x).rem_euclid(std::f64::consts::TAU);
+            Vec2::new(
+                (phi / std::f64::consts::TAU) as f32,
+                (raw.z.clamp(-1.0, 1.0).acos() / std::f64::consts::PI) as f32,
+            )
+        } else {
+            Vec2::ZERO
+        };
         Hit {
             t,
             position,

@@ -430,3 +430,57 @@ fn mis_weights_partition_unity_over_every_technique() {
         );
     }
 }
+
+/// A sphere's hits carry texture coordinates where its material reads them
+/// (a bitmap, a bump map, wrapped or scaled), and (0, 0) where nothing
+/// would read them: the angle and arc cosine per hit are skipped.
+#[test]
+fn sphere_hits_carry_texture_coordinates_where_their_material_reads_them() {
+    let bitmap = support::checkerboard();
+    let texture = format!(
+        "<texture name=\"reflectance\" type=\"bitmap\"><string name=\"filename\" value=\"{}\"/></texture>",
+        bitmap.display()
+    );
+    let cases = [
+        ("<bsdf type=\"diffuse\"/>".to_string(), false),
+        ("<bsdf type=\"dielectric\"/>".to_string(), false),
+        (format!("<bsdf type=\"diffuse\">{texture}</bsdf>"), true),
+        (
+            format!("<bsdf type=\"twosided\"><bsdf type=\"diffuse\">{texture}</bsdf></bsdf>"),
+            true,
+        ),
+        (
+            format!(
+                "<bsdf type=\"bumpmap\">{}<bsdf type=\"diffuse\"/></bsdf>",
+                texture.replace(" name=\"reflectance\"", "")
+            ),
+            true,
+        ),
+    ];
+    for (bsdf, textured) in cases {
+        let scene = support::room(&format!(
+            "<shape type=\"sphere\"><point name=\"center\" x=\"0\" y=\"0\" z=\"0\"/>
+                <float name=\"radius\" value=\"0.25\"/>{bsdf}</shape>"
+        ));
+        let x = hit(
+            &scene,
+            Vec3::new(0.8, 0.3, 0.2),
+            Vec3::new(-1.0, -0.3, -0.1),
+        );
+        let n = x.geometric_normal.as_dvec3();
+        let expected = [
+            n.y.atan2(n.x).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU,
+            n.z.acos() / std::f64::consts::PI,
+        ];
+        if textured {
+            assert!(
+                (f64::from(x.uv.x) - expected[0]).abs() < 1e-5
+                    && (f64::from(x.uv.y) - expected[1]).abs() < 1e-5,
+                "{bsdf}: {:?} against {expected:?}",
+                x.uv
+            );
+        } else {
+            assert_eq!(x.uv, glam::Vec2::ZERO, "{bsdf}");
+        }
+    }
+}

@@ -65,6 +65,22 @@ impl Recycle for Bsdf<'_> {
 }
 
 impl Material {
+    /// True if its values at a point depend on the point's texture
+    /// coordinates (a texture that varies, a bump map).
+    #[must_use]
+    pub fn reads_uv(&self) -> bool {
+        match self {
+            Material::Diffuse { reflectance } => reflectance.varies(),
+            Material::Plastic {
+                diffuse_reflectance,
+                ..
+            } => diffuse_reflectance.varies(),
+            Material::Dielectric { .. } | Material::Conductor { .. } => false,
+            Material::BumpMap { .. } => true,
+            Material::TwoSided(inner) => inner.reads_uv(),
+        }
+    }
+
     /// True if every lobe is rougher than `threshold` (microfacet α along
     /// both axes), looking through two-sided and bump-map wrappers: see
     /// [`Bsdf::is_rougher_than`]. Roughness is not textured, so this holds

@@ -37,6 +37,16 @@ pub enum Texture {
 }
 
 impl Texture {
+    /// True unless the texture is the same everywhere (it reads uv).
+    #[must_use]
+    pub fn varies(&self) -> bool {
+        match self {
+            Texture::Constant(_) => false,
+            Texture::Bitmap { .. } => true,
+            Texture::Scale(_, inner) => inner.varies(),
+        }
+    }
+
     /// The colour at texture coordinates `uv`.
     #[must_use]
     pub fn eval(&self, uv: [f32; 2]) -> [f32; 3] {
@@ -527,8 +537,16 @@ impl Scene {
             }
         }
         mesh_shapes.extend(sphere_shapes);
+        let mut geometry = Geometry::new(meshes, spheres);
+        let first_sphere = geometry.meshes().len();
+        geometry.set_sphere_uvs_used(|i| {
+            mesh_shapes
+                .get(first_sphere + i)
+                .and_then(|shape| materials.get(shape.material))
+                .is_none_or(Material::reads_uv)
+        });
         Ok(Scene {
-            geometry: Geometry::new(meshes, spheres),
+            geometry,
             shapes: mesh_shapes,
             materials,
             emitters,
