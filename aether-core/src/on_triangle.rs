@@ -9,7 +9,8 @@ use glam::Vec3;
 use crate::density::{Density, Measure};
 use crate::distribution::{Distribution, Sample, Step, Uniforms};
 use crate::primitives::UniformTriangle;
-use crate::vertex::{Geometry, Vertex};
+use crate::surface::on_a_surface;
+use crate::vertex::Vertex;
 
 /// [`OnSurface`](crate::OnSurface) for a [`UniformTriangle`], with
 /// `at(point, barycentrics)` building the vertex at a sampled point; the
@@ -66,19 +67,9 @@ impl<V: Vertex, F: Fn(Vec3, [f32; 3]) -> Option<V>> Distribution for OnTriangle<
         Some(Sample::new(Step::Vertex(v), s.density))
     }
     fn density(&self, v: &Step<V>) -> Density {
-        match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
-                self.triangle.density(&v.position())
-            }
-            _ => Density::zero(Measure::Area),
-        }
+        on_a_surface(v).map_or(Density::zero(Measure::Area), |p| self.triangle.density(&p))
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
-        match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
-                self.triangle.invert(&v.position())
-            }
-            _ => None,
-        }
+        on_a_surface(v).and_then(|p| self.triangle.invert(&p))
     }
 }

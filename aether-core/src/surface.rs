@@ -161,23 +161,23 @@ impl<V: Vertex, D: Distribution<Value = Vec3>, F: Fn(Vec3) -> Option<V>> Distrib
         Some(Sample::new(Step::Vertex(v), p.density))
     }
     fn density(&self, v: &Step<V>) -> Density {
-        match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
-                self.points.density(&v.position())
-            }
-            _ => Density::zero(Measure::Area),
-        }
+        on_a_surface(v).map_or(Density::zero(Measure::Area), |p| self.points.density(&p))
     }
     fn invert(&self, v: &Step<V>) -> Option<Uniforms> {
-        match v {
-            Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => {
-                self.points.invert(&v.position())
-            }
-            _ => None,
-        }
+        on_a_surface(v).and_then(|p| self.points.invert(&p))
     }
     fn has_overlapping_branches(&self) -> bool {
         self.points.has_overlapping_branches()
+    }
+}
+
+/// The position of a step's vertex if it lies on a surface: what a point
+/// sampled by area can be (isolated points and vertices at infinity
+/// cannot).
+pub(crate) fn on_a_surface<V: Vertex>(v: &Step<V>) -> Option<Vec3> {
+    match v {
+        Step::Vertex(v) if matches!(v.geometry(), Geometry::Surface { .. }) => Some(v.position()),
+        _ => None,
     }
 }
 

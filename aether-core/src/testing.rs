@@ -217,6 +217,18 @@ impl TestScene {
             UniformTriangle::new(corner, corner + e1 + e2, corner + e2)
         }
     }
+
+    /// Which of the light's two triangles a step's vertex lies on, if any:
+    /// the choice a light sample by area made.
+    #[must_use]
+    pub fn light_triangle_of(&self, v: &Step<TestVertex>) -> Option<usize> {
+        match v {
+            Step::Vertex(v) if v.shape as usize == self.light => {
+                (0..2).find(|&i| self.light_triangle(i).barycentrics(v.position).is_some())
+            }
+            _ => None,
+        }
+    }
 }
 
 impl RayCaster<TestVertex> for TestScene {
@@ -383,12 +395,7 @@ impl Strategy<TestVertex> for LightSample<'_> {
                 Some(scene.vertex_on(scene.light, p))
             })
         };
-        let which = move |v: &Step<TestVertex>| match v {
-            Step::Vertex(v) if v.shape as usize == scene.light => {
-                (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
-            }
-            _ => None,
-        };
+        let which = move |v: &Step<TestVertex>| scene.light_triangle_of(v);
         Select::new(&scene.light_triangles, 2, on_light, which)
     }
     fn memory(&self) -> usize {

@@ -179,12 +179,7 @@ impl Strategy<TestVertex> for BarycentricLight<'_> {
                 Some(scene.vertex_on(scene.light, q))
             })
         };
-        let which = move |v: &Step<TestVertex>| match v {
-            Step::Vertex(v) if v.shape as usize == scene.light => {
-                (0..2).find(|&i| scene.light_triangle(i).barycentrics(v.position).is_some())
-            }
-            _ => None,
-        };
+        let which = move |v: &Step<TestVertex>| scene.light_triangle_of(v);
         Select::new(&self.1, 2, on_light, which)
     }
     fn memory(&self) -> usize {

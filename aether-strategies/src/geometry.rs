@@ -50,7 +50,8 @@ pub struct Hit {
     pub geometric_normal: Vec3,
     /// The unit shading normal (interpolated, or the geometric normal).
     pub shading_normal: Vec3,
-    /// Texture coordinates (barycentric if the mesh has none).
+    /// Texture coordinates (barycentric if the mesh has none; (0, 0) on a
+    /// sphere whose material reads none: [`Geometry::set_sphere_uvs_used`]).
     pub uv: Vec2,
     /// What was hit.
     pub primitive: Primitive,
@@ -229,8 +230,11 @@ impl Geometry {
     }
 
     /// Says which spheres' hits need texture coordinates (`used(i)` for
-    /// sphere `i`): the others' hits carry (0, 0), which nothing reads. All
-    /// do until this is called.
+    /// sphere `i`): the others' hits carry (0, 0). All do until this is
+    /// called. The caller promises that nothing reads the others' (the
+    /// scene loader: their materials read none,
+    /// [`Material::reads_uv`](crate::scene::Material::reads_uv)); whoever
+    /// changes a loaded scene's materials or shapes calls it again.
     pub fn set_sphere_uvs_used(&mut self, used: impl Fn(usize) -> bool) {
         for (i, u) in self.sphere_uvs.iter_mut().enumerate() {
             *u = used(i);
@@ -440,21 +444,17 @@ impl Geometry {
     #[must_use]
     pub fn point_on_triangle(&self, mesh: u32, triangle: u32, position: Vec3) -> Hit {
         let plane = TrianglePlane::new(self.meshes[mesh as usize].corners(triangle as usize));
-        self.point_on_plane(mesh, triangle, &plane, plane.barycentrics(position))
+        let shape = (plane.corners(), plane.normal());
+        self.on_triangle(mesh, triangle, shape, 0.0, plane.barycentrics(position))
     }
 
     /// As [`point_on_triangle`](Self::point_on_triangle), for the point
     /// of barycentrics `b` (sampled with them: a light's triangles, at
-    /// every vertex of every path), the triangle's plane found beforehand.
+    /// every vertex of every path), given the triangle's corners and unit
+    /// normal (found once per light).
     #[must_use]
-    pub fn point_on_plane(
-        &self,
-        mesh: u32,
-        triangle: u32,
-        plane: &TrianglePlane,
-        b: [f32; 3],
-    ) -> Hit {
-        self.on_triangle(mesh, triangle, (plane.corners(), plane.normal()), 0.0, b)
+    pub fn point_at(&self, mesh: u32, triangle: u32, shape: ([Vec3; 3], Vec3), b: [f32; 3]) -> Hit {
+        self.on_triangle(mesh, triangle, shape, 0.0, b)
     }
 
     /// The surface point of sphere `sphere` in `direction` from its centre.

@@ -14,7 +14,7 @@ use glam::Vec3;
 
 use crate::camera::frame_of;
 use crate::geometry::Primitive;
-use crate::mesh::{TriangleMesh, TrianglePlane};
+use crate::mesh::{TriangleMesh, triangle_normal};
 use crate::scene::{Emitter, Scene};
 use crate::spectrum::luminance;
 use crate::vertex::{SceneVertex, Site};
@@ -26,7 +26,7 @@ struct MeshLight {
     mesh: u32,
     triangles: DiscreteDistribution,
     pieces: Vec<UniformTriangle>,
-    planes: Vec<TrianglePlane>,
+    normals: Vec<Vec3>,
 }
 
 impl MeshLight {
@@ -34,13 +34,13 @@ impl MeshLight {
     /// pass over its triangles.
     fn new(index: u32, mesh: &TriangleMesh) -> (Self, f64) {
         let count = mesh.triangles.len();
-        let (mut areas, mut pieces, mut planes) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut areas, mut pieces, mut normals) = (Vec::new(), Vec::new(), Vec::new());
         for t in 0..count {
             let corners = mesh.corners(t);
             let [a, b, c] = corners;
             areas.push(mesh.triangle_area(t));
             pieces.push(UniformTriangle::new(a, b, c));
-            planes.push(TrianglePlane::new(corners));
+            normals.push(triangle_normal(corners));
         }
         // A mesh without area emits nothing: power zero, never chosen.
         let triangles = DiscreteDistribution::new(&areas)
@@ -49,14 +49,15 @@ impl MeshLight {
             mesh: index,
             triangles,
             pieces,
-            planes,
+            normals,
         };
         (light, areas.iter().sum())
     }
 
     /// The light vertex of barycentrics `b`, sampled on triangle `t`.
     fn vertex(&self, scene: &Scene, t: usize, b: [f32; 3]) -> SceneVertex {
-        SceneVertex::on_plane(scene, self.mesh, t as u32, &self.planes[t], b)
+        let shape = (self.pieces[t].corners(), self.normals[t]);
+        SceneVertex::at_barycentrics(scene, (self.mesh, t as u32), shape, b)
     }
 }
 

@@ -4,7 +4,6 @@ use aether_core::{Geometry as Place, RayCaster, Recycle, Vertex};
 use glam::{Vec2, Vec3};
 
 use crate::geometry::{Hit, Primitive, offset_origin, unit};
-use crate::mesh::TrianglePlane;
 use crate::scene::Scene;
 
 /// What a vertex lies on.
@@ -50,7 +49,8 @@ pub struct SceneVertex {
     pub geometric_normal: Vec3,
     /// Shading normal.
     pub shading_normal: Vec3,
-    /// Texture coordinates.
+    /// Texture coordinates ((0, 0) on a sphere whose material reads none:
+    /// [`Geometry::set_sphere_uvs_used`](crate::geometry::Geometry::set_sphere_uvs_used)).
     pub uv: Vec2,
     /// Absolute rounding-error bound per coordinate of `position`.
     pub error: Vec3,
@@ -126,16 +126,15 @@ impl SceneVertex {
     }
 
     /// As [`on_triangle`](Self::on_triangle), for the point of barycentrics
-    /// `b` (as it was sampled), the triangle's plane found beforehand.
+    /// `b` (as it was sampled), given the triangle's corners and unit normal.
     #[must_use]
-    pub fn on_plane(
+    pub fn at_barycentrics(
         scene: &Scene,
-        mesh: u32,
-        triangle: u32,
-        plane: &TrianglePlane,
+        (mesh, triangle): (u32, u32),
+        shape: ([Vec3; 3], Vec3),
         b: [f32; 3],
     ) -> Self {
-        let hit = scene.geometry.point_on_plane(mesh, triangle, plane, b);
+        let hit = scene.geometry.point_at(mesh, triangle, shape, b);
         SceneVertex::from_hit(&hit, scene.shape_of(hit.primitive))
     }
 

@@ -15,10 +15,11 @@ use aether_core::{
 };
 use aether_strategies::bsdf::{Bsdf, Transport};
 use aether_strategies::camera::Camera;
+use aether_strategies::geometry::Primitive;
 use aether_strategies::lights::Lights;
 use aether_strategies::portal::PortalSegment;
 use aether_strategies::scattering::{BsdfSampling, Roulette};
-use aether_strategies::vertex::SceneVertex;
+use aether_strategies::vertex::{SceneVertex, Site};
 use glam::Vec3;
 use support::{SceneChart, hit, portal_room, room};
 
@@ -433,54 +434,78 @@ fn mis_weights_partition_unity_over_every_technique() {
 
 /// A sphere's hits carry texture coordinates where its material reads them
 /// (a bitmap, a bump map, wrapped or scaled), and (0, 0) where nothing
-/// would read them: the angle and arc cosine per hit are skipped.
+/// would read them: the angle and arc cosine per hit are skipped. A second,
+/// textured sphere keeps its own: each sphere has its own flag.
 #[test]
 fn sphere_hits_carry_texture_coordinates_where_their_material_reads_them() {
-    let bitmap = support::checkerboard();
-    let texture = format!(
-        "<texture name=\"reflectance\" type=\"bitmap\"><string name=\"filename\" value=\"{}\"/></texture>",
-        bitmap.display()
+    let bitmap = format!(
+        "<texture type=\"bitmap\"><string name=\"filename\" value=\"{}\"/></texture>",
+        support::checkerboard().display()
+    );
+    let named = bitmap.replace("<texture ", "<texture name=\"reflectance\" ");
+    let scaled = format!(
+        "<texture name=\"reflectance\" type=\"scale\"><float name=\"scale\" value=\"0.5\"/>{bitmap}</texture>"
     );
     let cases = [
         ("<bsdf type=\"diffuse\"/>".to_string(), false),
         ("<bsdf type=\"dielectric\"/>".to_string(), false),
-        (format!("<bsdf type=\"diffuse\">{texture}</bsdf>"), true),
-        (
-            format!("<bsdf type=\"twosided\"><bsdf type=\"diffuse\">{texture}</bsdf></bsdf>"),
-            true,
-        ),
+        (format!("<bsdf type=\"diffuse\">{named}</bsdf>"), true),
+        (format!("<bsdf type=\"diffuse\">{scaled}</bsdf>"), true),
         (
             format!(
-                "<bsdf type=\"bumpmap\">{}<bsdf type=\"diffuse\"/></bsdf>",
-                texture.replace(" name=\"reflectance\"", "")
+                "<bsdf type=\"plastic\">{}</bsdf>",
+                named.replace("\"reflectance\"", "\"diffuseReflectance\"")
             ),
             true,
         ),
+        (
+            format!("<bsdf type=\"twosided\"><bsdf type=\"diffuse\">{named}</bsdf></bsdf>"),
+            true,
+        ),
+        (
+            format!("<bsdf type=\"bumpmap\">{bitmap}<bsdf type=\"diffuse\"/></bsdf>"),
+            true,
+        ),
     ];
+    let spherical = |x: &SceneVertex| {
+        let n = x.geometric_normal.as_dvec3();
+        [
+            n.y.atan2(n.x).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU,
+            n.z.acos() / std::f64::consts::PI,
+        ]
+    };
     for (bsdf, textured) in cases {
         let scene = support::room(&format!(
             "<shape type=\"sphere\"><point name=\"center\" x=\"0\" y=\"0\" z=\"0\"/>
-                <float name=\"radius\" value=\"0.25\"/>{bsdf}</shape>"
+                <float name=\"radius\" value=\"0.25\"/>{bsdf}</shape>
+            <shape type=\"sphere\"><point name=\"center\" x=\"0\" y=\"0.6\" z=\"0\"/>
+                <float name=\"radius\" value=\"0.2\"/><bsdf type=\"diffuse\">{named}</bsdf></shape>"
         ));
-        let x = hit(
-            &scene,
-            Vec3::new(0.8, 0.3, 0.2),
-            Vec3::new(-1.0, -0.3, -0.1),
-        );
-        let n = x.geometric_normal.as_dvec3();
-        let expected = [
-            n.y.atan2(n.x).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU,
-            n.z.acos() / std::f64::consts::PI,
+        let rays = [
+            (
+                Vec3::new(0.8, 0.3, 0.2),
+                Vec3::new(-1.0, -0.3, -0.1),
+                textured,
+            ),
+            (Vec3::new(0.8, 0.65, 0.1), Vec3::new(-1.0, 0.0, 0.0), true),
         ];
-        if textured {
+        for (k, (origin, dir, reads)) in rays.into_iter().enumerate() {
+            let x = hit(&scene, origin, dir);
             assert!(
-                (f64::from(x.uv.x) - expected[0]).abs() < 1e-5
-                    && (f64::from(x.uv.y) - expected[1]).abs() < 1e-5,
-                "{bsdf}: {:?} against {expected:?}",
-                x.uv
+                matches!(x.site, Site::Surface { primitive: Primitive::Sphere(s), .. } if s as usize == k),
+                "{bsdf}: ray {k} missed its sphere: {:?}",
+                x.site
             );
-        } else {
-            assert_eq!(x.uv, glam::Vec2::ZERO, "{bsdf}");
+            let (uv, expected) = (x.uv, spherical(&x));
+            if reads {
+                assert!(
+                    (f64::from(uv.x) - expected[0]).abs() < 1e-5
+                        && (f64::from(uv.y) - expected[1]).abs() < 1e-5,
+                    "{bsdf}: sphere {k}: {uv:?} against {expected:?}"
+                );
+            } else {
+                assert_eq!(uv, glam::Vec2::ZERO, "{bsdf}: sphere {k}");
+            }
         }
     }
 }

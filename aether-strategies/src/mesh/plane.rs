@@ -1,10 +1,9 @@
-//! A triangle's plane, solved once: what a point sampled on the triangle
-//! needs to become a surface point (its barycentrics, for the normal, the
-//! texture coordinates and the error bound), minus the point itself.
-//!
-//! A light's triangles are sampled at every vertex of every path; solving
-//! the 2×2 system of each sampled point from scratch cost more than
-//! sampling the point.
+//! A triangle's plane, solved for the barycentrics of a point given by its
+//! position (a point some strategy found on a mesh): what the point needs
+//! to become a surface point (its barycentrics, for the normal, the
+//! texture coordinates and the error bound), minus the point itself. A
+//! light's own samples keep the barycentrics they were made of instead
+//! (`aether_core::OnTriangle`).
 
 use glam::{DVec3, Vec3};
 

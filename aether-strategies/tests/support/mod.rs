@@ -57,15 +57,22 @@ pub fn portal_room() -> Scene {
     )
 }
 
-/// A grey 8×8 checkerboard PNG for textures and bump maps.
+/// A grey 8×8 checkerboard PNG for textures and bump maps, written once
+/// per test process (rewritten by each test, it could be read half-written
+/// by another running beside it).
 pub fn checkerboard() -> PathBuf {
-    let path = folder().join("checker.png");
-    let img = image::RgbImage::from_fn(8, 8, |x, y| {
-        let v = if (x + y) % 2 == 0 { 200 } else { 60 };
-        image::Rgb([v, v, v])
-    });
-    img.save(&path).unwrap();
-    path
+    static WRITTEN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    WRITTEN
+        .get_or_init(|| {
+            let path = folder().join("checker.png");
+            let img = image::RgbImage::from_fn(8, 8, |x, y| {
+                let v = if (x + y) % 2 == 0 { 200 } else { 60 };
+                image::Rgb([v, v, v])
+            });
+            img.save(&path).unwrap();
+            path
+        })
+        .clone()
 }
 
 /// A chart of every triangle and sphere of a scene (`n` × `n` cells each,
