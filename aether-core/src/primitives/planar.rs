@@ -106,9 +106,8 @@ impl Distribution for UniformDisk {
 }
 
 /// sin x and cos x for |x| ≤ π/4, within two units in the last place of
-/// the exact values:
-/// the minimax polynomials of Moshier's Cephes library (`sinf`, `cosf`)
-/// for that range, where they need no argument reduction.
+/// the exact values: the minimax polynomials of Moshier's Cephes library
+/// (`sinf`, `cosf`) for that range, where they need no argument reduction.
 fn sin_cos_quarter(x: f32) -> (f32, f32) {
     let z = x * x;
     let sin = x + x * z * (-1.666_665_5e-1 + z * (8.332_161e-3 + z * -1.951_529_6e-4));
