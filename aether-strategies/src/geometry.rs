@@ -445,7 +445,7 @@ impl Geometry {
     pub fn point_on_triangle(&self, mesh: u32, triangle: u32, position: Vec3) -> Hit {
         let plane = TrianglePlane::new(self.meshes[mesh as usize].corners(triangle as usize));
         let shape = (plane.corners(), plane.normal());
-        self.on_triangle(mesh, triangle, shape, 0.0, plane.barycentrics(position))
+        self.point_at(mesh, triangle, shape, plane.barycentrics(position))
     }
 
     /// As [`point_on_triangle`](Self::point_on_triangle), for the point
