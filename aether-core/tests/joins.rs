@@ -121,3 +121,85 @@ fn joins_weigh_as_split_weights_do() {
     assert!(shared > 500, "{shared} weights strictly between 0 and 1");
     eprintln!("joins checked {checked:?}, {shared} shared weights");
 }
+
+/// Diffuse bounces continued by Russian roulette from the `start`-th vertex
+/// on: their densities change with the depth, so a vertex's density under
+/// the other side's strategies depends on the length of the path it is
+/// joined into (the depth classes the joins keep their sums by).
+struct RouletteBounce<'s> {
+    bounce: aether_core::testing::Bounce<'s>,
+    start: usize,
+}
+
+impl aether_core::Strategy<TestVertex> for RouletteBounce<'_> {
+    fn distribution<'a>(
+        &'a self,
+        prefix: aether_core::Prefix<'a, TestVertex>,
+    ) -> impl aether_core::Distribution<Value = aether_core::Step<TestVertex>> + 'a {
+        let q = if prefix.len() >= self.start { 0.6 } else { 1.0 };
+        aether_core::RussianRoulette::new(q, self.bounce.distribution(prefix))
+    }
+    fn memory(&self) -> usize {
+        2
+    }
+    fn depth_class(&self, prefix_len: usize) -> usize {
+        usize::from(prefix_len >= self.start)
+    }
+}
+
+#[test]
+fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
+    let scene = TestScene::open_box();
+    let f = BidirectionalFixture::new(&scene);
+    let bounce = RouletteBounce {
+        bounce: f.bounce,
+        start: 3,
+    };
+    let direct = one(&f.light);
+    let camera = [one(&f.camera), one(&f.look), one(&bounce)];
+    let light = [one(&f.light), one(&bounce)];
+    let mut rng = Pcg32::new(5, 9);
+    let (mut checked, mut between) = (0usize, 0usize);
+    for _ in 0..300 {
+        let mut eye = RandomSequence::new();
+        eye.append(&f.camera)
+            .append(&f.look)
+            .repeat(&bounce, 6, &mut rng);
+        let mut lights = RandomSequence::new();
+        lights.append(&f.light).repeat(&bounce, 6, &mut rng);
+        let steps = (Some(direct), None);
+        let lists = (&camera[..], &light[..]);
+        let mut joins = Joins::new(
+            (&eye, &lights),
+            lists,
+            steps,
+            (64.0, true),
+            Heuristic::POWER,
+        );
+        for s in 2..=eye.len() {
+            for t in [0, 2, 3, 4, 5, 6, 7] {
+                if t > lights.len() {
+                    continue;
+                }
+                let n = s + t;
+                let path = eye.slice(0..s).concat(&lights.slice(0..t).reversed());
+                let join = Join::new((&eye, s), (&lights, t), None);
+                let mut splits = Splits::new();
+                Split::bidirectional(n, Some(direct), None, 64.0, true, &mut splits);
+                let h = Heuristic::POWER;
+                let by_split = weight_of_split(&path, &camera, &light, &splits, s, h, None);
+                let what = format!("(s, t) = ({s}, {t})");
+                close(joins.weight(s, &path), by_split, &what);
+                let by_parts = joins.join_weights(&join, s, 1, &[one(&f.look)]);
+                close(by_parts[0], by_split, &format!("{what}, by its parts"));
+                checked += 1;
+                between += usize::from(by_split.0 > 0.0 && by_split.0 < 1.0);
+            }
+        }
+    }
+    // Long paths, both sides of the roulette's start, many shared weights.
+    assert!(
+        checked > 2000 && between > 1000,
+        "{checked} joins, {between} shared"
+    );
+}
