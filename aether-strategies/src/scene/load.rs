@@ -49,7 +49,18 @@ impl Texture {
 
     /// The colour at texture coordinates `uv`.
     #[must_use]
+    #[inline]
     pub fn eval(&self, uv: [f32; 2]) -> [f32; 3] {
+        // A constant is read in place; only an image or a scaled texture
+        // is a call (the recursion kept every evaluation out of line).
+        match self {
+            Texture::Constant(c) => *c,
+            varying => varying.eval_varying(uv),
+        }
+    }
+
+    #[inline(never)]
+    fn eval_varying(&self, uv: [f32; 2]) -> [f32; 3] {
         match self {
             Texture::Constant(c) => *c,
             Texture::Bitmap {
