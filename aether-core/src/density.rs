@@ -264,11 +264,27 @@ impl fmt::Display for Density {
 ///
 /// Zero factors are counted rather than multiplied in, so that a factor can
 /// be divided out again exactly (the ratio recursion of MIS depends on it).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, PartialEq)]
 pub struct PathDensity {
     value: f64,
-    zeros: u32,
-    dirac: u32,
+    /// The number of zero factors times 2³² plus the Dirac order: two
+    /// fields, so that a path density is a pair of scalars and moves in
+    /// registers (as [`Density`] does), and a product adds both counts in
+    /// one addition.
+    counts: u64,
+}
+
+/// One zero factor in [`PathDensity::counts`].
+const ZERO_FACTOR: u64 = 1 << 32;
+
+impl fmt::Debug for PathDensity {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("PathDensity")
+            .field("value", &self.value)
+            .field("zeros", &self.zeros())
+            .field("dirac", &self.dirac_order())
+            .finish()
+    }
 }
 
 impl Default for PathDensity {
@@ -281,23 +297,25 @@ impl PathDensity {
     /// The empty product.
     pub const ONE: PathDensity = PathDensity {
         value: 1.0,
-        zeros: 0,
-        dirac: 0,
+        counts: 0,
     };
+
+    fn zeros(self) -> u32 {
+        (self.counts >> 32) as u32
+    }
 
     /// Multiplies a factor in.
     #[must_use]
     pub fn times(self, d: Density) -> PathDensity {
         if d.is_zero() {
             PathDensity {
-                zeros: self.zeros + 1,
+                counts: self.counts + ZERO_FACTOR,
                 ..self
             }
         } else {
             PathDensity {
                 value: self.value * d.value,
-                dirac: self.dirac + d.dirac_order(),
-                zeros: self.zeros,
+                counts: self.counts + u64::from(d.dirac_order()),
             }
         }
     }
@@ -307,8 +325,7 @@ impl PathDensity {
     pub fn times_path(self, other: PathDensity) -> PathDensity {
         PathDensity {
             value: self.value * other.value,
-            zeros: self.zeros + other.zeros,
-            dirac: self.dirac + other.dirac,
+            counts: self.counts + other.counts,
         }
     }
 
@@ -317,18 +334,24 @@ impl PathDensity {
     pub fn divided_by(self, d: Density) -> PathDensity {
         if d.is_zero() {
             debug_assert!(
-                self.zeros > 0,
+                self.zeros() > 0,
                 "dividing out a zero factor that was never multiplied in"
             );
             PathDensity {
-                zeros: self.zeros.saturating_sub(1),
+                counts: match self.zeros() {
+                    0 => self.counts,
+                    _ => self.counts - ZERO_FACTOR,
+                },
                 ..self
             }
         } else {
+            debug_assert!(
+                self.dirac_order() >= d.dirac_order(),
+                "dividing out Dirac factors that were never multiplied in"
+            );
             PathDensity {
                 value: self.value / d.value,
-                dirac: self.dirac - d.dirac_order(),
-                zeros: self.zeros,
+                counts: self.counts - u64::from(d.dirac_order()),
             }
         }
     }
@@ -336,19 +359,19 @@ impl PathDensity {
     /// The numeric value: the product of the factors' values (masses for Dirac factors).
     #[must_use]
     pub fn value(self) -> f64 {
-        if self.zeros > 0 { 0.0 } else { self.value }
+        if self.zeros() > 0 { 0.0 } else { self.value }
     }
 
     /// The number of Dirac factors in the product.
     #[must_use]
     pub fn dirac_order(self) -> u32 {
-        self.dirac
+        self.counts as u32
     }
 
     /// True if the path cannot be produced.
     #[must_use]
     pub fn is_zero(self) -> bool {
-        self.zeros > 0 || self.value == 0.0 || !is_finite(self.value)
+        self.zeros() > 0 || self.value == 0.0 || !is_finite(self.value)
     }
 
     /// The density of a mixture whose components have densities `self`
@@ -362,7 +385,7 @@ impl PathDensity {
         if self.is_zero() {
             return other;
         }
-        match other.dirac.cmp(&self.dirac) {
+        match other.dirac_order().cmp(&self.dirac_order()) {
             std::cmp::Ordering::Greater => other,
             std::cmp::Ordering::Less => self,
             std::cmp::Ordering::Equal => PathDensity {
@@ -401,7 +424,7 @@ impl PathDensity {
         if self.is_zero() {
             return f64::INFINITY;
         }
-        match other.dirac.cmp(&self.dirac) {
+        match other.dirac_order().cmp(&self.dirac_order()) {
             std::cmp::Ordering::Greater => f64::INFINITY,
             std::cmp::Ordering::Less => 0.0,
             std::cmp::Ordering::Equal => other.value / self.value,
@@ -412,8 +435,8 @@ impl PathDensity {
 impl fmt::Display for PathDensity {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{:.6e}", self.value())?;
-        if self.dirac > 0 {
-            write!(f, " (Dirac order {})", self.dirac)?;
+        if self.dirac_order() > 0 {
+            write!(f, " (Dirac order {})", self.dirac_order())?;
         }
         Ok(())
     }
@@ -456,6 +479,26 @@ mod tests {
             Density::zero(Measure::Area),
             Density::zero(Measure::SolidAngle)
         );
+    }
+
+    #[test]
+    fn path_densities_count_zeros_and_dirac_factors_apart() {
+        let dirac = Density::dirac(0.5, Measure::Area);
+        let zero = Density::zero(Measure::Area);
+        let mut p = PathDensity::ONE;
+        for k in 1..=5u32 {
+            p = p.times(dirac).times(zero);
+            assert_eq!((p.zeros(), p.dirac_order(), p.value()), (k, k, 0.0));
+        }
+        let q = p.times_path(p);
+        assert_eq!((q.zeros(), q.dirac_order()), (10, 10));
+        for k in (0..5u32).rev() {
+            p = p.divided_by(zero).divided_by(dirac);
+            assert_eq!((p.zeros(), p.dirac_order()), (k, k));
+        }
+        assert_eq!(p, PathDensity::ONE);
+        let shown = format!("{:?}", PathDensity::ONE.times(dirac).times(zero));
+        assert_eq!(shown, "PathDensity { value: 0.5, zeros: 1, dirac: 1 }");
     }
 
     #[test]
