@@ -143,8 +143,8 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
     /// place of the camera-side entry `at`: the per-pixel weights of a
     /// join splatted to several pixels, as
     /// [`weights_of_split_variants`](crate::weights_of_split_variants)
-    /// gives them (the camera's own entry as the one variant is the plain
-    /// weight).
+    /// gives them (the camera's own entry as the one variant, or no
+    /// variants, is the plain weight).
     pub fn weights(
         &mut self,
         own: usize,
@@ -156,14 +156,15 @@ impl<'p, 's, V: Vertex> Joins<'p, 's, V> {
         self.weigh_any(own, path, variants)
     }
 
-    /// `variants` in place of the camera-side entry `at`, or none if the
-    /// one variant is that entry (the plain weight).
+    /// `variants` in place of the camera-side entry `at`, or none if there
+    /// are none or the one variant is that entry (the plain weight).
     fn varying<'v>(
         &self,
         at: usize,
         variants: &'v [StrategyRef<'v, V>],
     ) -> Option<(usize, &'v [StrategyRef<'v, V>])> {
         match (variants, self.camera.get(at)) {
+            ([], _) => None,
             ([v], Some(c)) if v.same(c) => None,
             _ => Some((at, variants)),
         }

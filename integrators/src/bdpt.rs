@@ -462,9 +462,13 @@ impl<'s> Bdpt<'s> {
             true => pixels.extend(self.camera.pixels_toward(lens, d).map(at)),
             false => pixels.push((run.pixel, run.kit.look)),
         };
+        if splat && pixels.is_empty() {
+            return DVec3::ZERO;
+        }
         // The sample's own pixel is weighed by its own strategy, no variant.
-        let look = |k: usize| one(if splat { &pixels[k].1 } else { &run.kit.look });
-        looks.extend((0..pixels.len()).map(look));
+        if splat {
+            looks.extend(pixels.iter().map(|p| one(&p.1)));
+        }
         let weights = run
             .joins
             .join_weights(join, own.index(join.len()), 1, &looks);
