@@ -62,7 +62,7 @@ impl Measure {
 /// The density of one sampled value: a non-negative value, its measure, and
 /// how many Dirac factors it carries.
 ///
-/// A density with `dirac > 0` is the discrete mass of a Dirac component
+/// A density with `dirac_order() > 0` is the discrete mass of a Dirac component
 /// (times the conversion factors applied to it, such as the solid-angle to
 /// area change at a hit point). A zero density means the value cannot be
 /// produced at all. Non-finite or negative values are turned into zero.
@@ -468,6 +468,13 @@ mod tests {
                 d = d * Density::dirac(1.0, Measure::Discrete);
             }
         }
+        let area = Density::new(2.0, Measure::Area);
+        assert_eq!((area * area).measure(), Measure::AreaProduct);
+        let sum = Density::dirac(0.5, Measure::Length) + Density::dirac(0.25, Measure::Length);
+        assert_eq!(
+            (sum.value(), sum.measure(), sum.dirac_order()),
+            (0.75, Measure::Length, 1)
+        );
         let p = Density::dirac(0.25, Measure::SolidAngle) * Density::new(2.0, Measure::Discrete);
         let shown = format!("{p:?}");
         assert_eq!(

@@ -159,8 +159,8 @@ fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
     let camera = [one(&f.camera), one(&f.look), one(&bounce)];
     let light = [one(&f.light), one(&bounce)];
     let mut rng = Pcg32::new(5, 9);
-    let (mut checked, mut between) = (0usize, 0usize);
-    for _ in 0..300 {
+    let (mut checked, mut between, mut lamps) = (0usize, 0usize, 0usize);
+    for sample in 0..300 {
         let mut eye = RandomSequence::new();
         eye.append(&f.camera)
             .append(&f.look)
@@ -176,14 +176,31 @@ fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
             (64.0, true),
             Heuristic::POWER,
         );
+        let mut joined = 0;
         for s in 2..=eye.len() {
-            for t in [0, 2, 3, 4, 5, 6, 7] {
+            for t in 0..=7 {
                 if t > lights.len() {
                     continue;
                 }
                 let n = s + t;
-                let path = eye.slice(0..s).concat(&lights.slice(0..t).reversed());
-                let join = Join::new((&eye, s), (&lights, t), None);
+                // A light sample (t = 1), drawn twice from one state of the
+                // generator: beside the eye and appended to its prefix.
+                let again = rng.clone();
+                let lamp = match t {
+                    1 => eye.sample_after(s, &f.light, &mut rng),
+                    _ => None,
+                };
+                let path = match (t, &lamp) {
+                    (1, Some(_)) => {
+                        let mut path = eye.slice(0..s);
+                        assert!(path.append_sample(&f.light, &mut again.clone()));
+                        lamps += 1;
+                        path
+                    }
+                    (1, None) => continue,
+                    _ => eye.slice(0..s).concat(&lights.slice(0..t).reversed()),
+                };
+                let join = Join::new((&eye, s), (&lights, t), lamp.as_ref());
                 let mut splits = Splits::new();
                 Split::bidirectional(n, Some(direct), None, 64.0, true, &mut splits);
                 let h = Heuristic::POWER;
@@ -193,13 +210,18 @@ fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
                 let by_parts = joins.join_weights(&join, s, 1, &[one(&f.look)]);
                 close(by_parts[0], by_split, &format!("{what}, by its parts"));
                 checked += 1;
+                joined += 1;
                 between += usize::from(by_split.0 > 0.0 && by_split.0 < 1.0);
             }
         }
+        // Every join took the kept densities' shortcut, from its path and
+        // from its parts (not the reference it is compared with).
+        assert_eq!(joins.shortcuts(), 2 * joined, "sample {sample}");
     }
-    // Long paths, both sides of the roulette's start, many shared weights.
+    // Long paths, both sides of the roulette's start, light samples, many
+    // shared weights.
     assert!(
-        checked > 2000 && between > 1000,
-        "{checked} joins, {between} shared"
+        checked > 2000 && between > 1000 && lamps > 300,
+        "{checked} joins, {between} shared, {lamps} light samples"
     );
 }

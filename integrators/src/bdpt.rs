@@ -462,16 +462,16 @@ impl<'s> Bdpt<'s> {
             true => pixels.extend(self.camera.pixels_toward(lens, d).map(at)),
             false => pixels.push((run.pixel, run.kit.look)),
         };
-        if splat && pixels.is_empty() {
-            return DVec3::ZERO;
-        }
-        // The sample's own pixel is weighed by its own strategy, no variant.
-        if splat {
-            looks.extend(pixels.iter().map(|p| one(&p.1)));
-        }
-        let weights = run
-            .joins
-            .join_weights(join, own.index(join.len()), 1, &looks);
+        // A splat varies the camera ray's strategy per pixel; the sample's
+        // own pixel is weighed with its own strategies, no variant.
+        let technique = own.index(join.len());
+        let weights = match splat {
+            true => {
+                looks.extend(pixels.iter().map(|p| one(&p.1)));
+                run.joins.join_weights(join, technique, 1, &looks)
+            }
+            false => smallvec::smallvec![run.joins.join_weight(join, technique)],
+        };
         let mut seen = DVec3::ZERO;
         for (&(j, _), &(w, p)) in pixels.iter().zip(&weights) {
             let p = p.value();

@@ -59,6 +59,8 @@ impl Texture {
         }
     }
 
+    /// [`eval`](Self::eval) out of line, for images and scaled textures
+    /// (`eval` reads a constant itself, at any depth of scaling).
     #[inline(never)]
     fn eval_varying(&self, uv: [f32; 2]) -> [f32; 3] {
         match self {
