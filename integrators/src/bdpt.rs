@@ -465,11 +465,9 @@ impl<'s> Bdpt<'s> {
         // A splat varies the camera ray's strategy per pixel; the sample's
         // own pixel is weighed with its own strategies, no variant.
         let technique = own.index(join.len());
+        looks.extend(pixels.iter().filter(|_| splat).map(|p| one(&p.1)));
         let weights = match splat {
-            true => {
-                looks.extend(pixels.iter().map(|p| one(&p.1)));
-                run.joins.join_weights(join, technique, 1, &looks)
-            }
+            true => run.joins.join_weights(join, technique, 1, &looks),
             false => smallvec::smallvec![run.joins.join_weight(join, technique)],
         };
         let mut seen = DVec3::ZERO;
