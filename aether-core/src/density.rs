@@ -85,8 +85,9 @@ pub struct Density {
     kind: u32,
 }
 
-/// The measures by index in [`Density::kind`] (padded to eight, so that
-/// a masked index needs no bounds check).
+/// The measures by index in [`Density::kind`], which is their order in
+/// [`Measure`] (padded to eight, so that a masked index needs no bounds
+/// check).
 const MEASURES: [Measure; 8] = [
     Measure::Discrete,
     Measure::Length,
@@ -99,14 +100,7 @@ const MEASURES: [Measure; 8] = [
 ];
 
 const fn kind(measure: Measure, dirac: u32) -> u32 {
-    let index = match measure {
-        Measure::Discrete => 0,
-        Measure::Length => 1,
-        Measure::Area => 2,
-        Measure::SolidAngle => 3,
-        Measure::AreaProduct => 4,
-    };
-    (dirac << 3) | index
+    (dirac << 3) | measure as u32
 }
 
 impl fmt::Debug for Density {

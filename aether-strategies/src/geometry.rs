@@ -117,9 +117,10 @@ pub fn rays_cast() -> u64 {
 /// True if `x` is finite: `x − x` is zero exactly for finite `x`. Two
 /// float instructions, where `x.is_finite()` followed by a comparison
 /// compiled to tests of the bits with branches.
+#[must_use]
 #[inline(always)]
 #[allow(clippy::eq_op)]
-pub(crate) fn is_finite(x: f32) -> bool {
+pub fn is_finite(x: f32) -> bool {
     x - x == 0.0
 }
 

@@ -5,6 +5,8 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use aether_strategies::geometry::is_finite;
+
 /// `v` as f32, saturating at the largest finite f32: a mean too bright for
 /// f32 (reflectance far above one) stays finite in the image.
 #[must_use]
@@ -161,12 +163,10 @@ impl Film {
 
 /// Whether a radiance sample may enter the film.
 #[must_use]
-#[allow(clippy::eq_op)]
 pub fn is_valid(c: [f32; 3]) -> bool {
-    // x − x is zero exactly for finite x; the three channels tested
-    // together, without a branch each (44 instructions per sample as
-    // `is_finite() && >= 0` per channel).
-    let ok = |x: f32| (x - x == 0.0) & (x >= 0.0);
+    // The three channels tested together, without a branch each (44
+    // instructions per sample as `is_finite() && >= 0` per channel).
+    let ok = |x: f32| is_finite(x) & (x >= 0.0);
     ok(c[0]) & ok(c[1]) & ok(c[2])
 }
 
