@@ -192,6 +192,8 @@ impl Density {
     /// Multiplies by a Jacobian factor, keeping measure and Dirac order.
     #[must_use]
     pub fn scale(self, factor: f64) -> Self {
+        // `new` only cleans the value: its measure is replaced by this
+        // density's kind.
         Density {
             kind: self.kind,
             ..Density::new(self.value * factor, Measure::Discrete)

@@ -58,7 +58,7 @@ fn joins_weigh_as_split_weights_do() {
                 // The joined path, and the same join described by its parts.
                 // A light sample, drawn twice from one state of the
                 // generator: beside the eye and appended to its prefix.
-                let again = rng.clone();
+                let mut again = rng.clone();
                 let lamp = match t {
                     1 if s >= 1 => eye.sample_after(s, &f.light, &mut rng),
                     _ => None,
@@ -67,7 +67,7 @@ fn joins_weigh_as_split_weights_do() {
                     (0, _) => eye.slice(0..s),
                     (1, Some(_)) => {
                         let mut path = eye.slice(0..s);
-                        assert!(path.append_sample(&f.light, &mut again.clone()));
+                        assert!(path.append_sample(&f.light, &mut again));
                         path
                     }
                     (1, None) => continue,
@@ -185,7 +185,7 @@ fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
                 let n = s + t;
                 // A light sample (t = 1), drawn twice from one state of the
                 // generator: beside the eye and appended to its prefix.
-                let again = rng.clone();
+                let mut again = rng.clone();
                 let lamp = match t {
                     1 => eye.sample_after(s, &f.light, &mut rng),
                     _ => None,
@@ -193,7 +193,7 @@ fn joins_weigh_as_split_weights_do_when_densities_change_with_depth() {
                 let path = match (t, &lamp) {
                     (1, Some(_)) => {
                         let mut path = eye.slice(0..s);
-                        assert!(path.append_sample(&f.light, &mut again.clone()));
+                        assert!(path.append_sample(&f.light, &mut again));
                         lamps += 1;
                         path
                     }
